@@ -1,0 +1,43 @@
+// Time source for the loop and for simulated devices. The real clock is CLOCK_MONOTONIC with
+// absolute-deadline sleeps; tests inject a manual clock so scheduling and overrun policy are
+// checked deterministically, without depending on the machine's timing.
+#pragma once
+
+#include <cstdint>
+
+namespace trainer::core {
+
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  virtual std::int64_t now_ns() noexcept = 0;
+  // Sleep until the absolute time `deadline_ns` on this clock (returns at once if past).
+  virtual void sleep_until_ns(std::int64_t deadline_ns) noexcept = 0;
+};
+
+// CLOCK_MONOTONIC + clock_nanosleep(TIMER_ABSTIME), retried on EINTR.
+class MonotonicClock final : public Clock {
+ public:
+  std::int64_t now_ns() noexcept override;
+  void sleep_until_ns(std::int64_t deadline_ns) noexcept override;
+};
+
+// Deterministic clock for tests and offline runs: time moves only when told to.
+// sleep_until_ns jumps to the deadline plus an optional injected wake-up latency.
+class ManualClock final : public Clock {
+ public:
+  explicit ManualClock(std::int64_t start_ns = 0) noexcept : now_(start_ns) {}
+  std::int64_t now_ns() noexcept override { return now_; }
+  void sleep_until_ns(std::int64_t deadline_ns) noexcept override {
+    if (deadline_ns > now_) now_ = deadline_ns;
+    now_ += next_wake_latency_ns_;
+  }
+  void advance_ns(std::int64_t delta_ns) noexcept { now_ += delta_ns; }
+  void set_wake_latency_ns(std::int64_t latency_ns) noexcept { next_wake_latency_ns_ = latency_ns; }
+
+ private:
+  std::int64_t now_;
+  std::int64_t next_wake_latency_ns_ = 0;
+};
+
+}  // namespace trainer::core

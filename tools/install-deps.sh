@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs every build, test and tool dependency from Debian packages.
+# Idempotent and non-interactive: packages already present are not touched, and
+# apt-get runs only when something is missing. Needs root (or sudo).
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev          # dense/sparse linear algebra (offline model compiler)
+  libspectra-dev         # sparse eigen-solver (modal analysis)
+  libsuitesparse-dev     # CHOLMOD sparse Cholesky (precompute)
+  libusb-1.0-0-dev       # USB device backend
+  libgpiod-dev           # GPIO lines backend (libgpiod v1 API on Debian 12)
+  libtomlplusplus-dev    # TOML parser for scene/device files
+  libcli11-dev           # command-line parser
+  nlohmann-json3-dev     # JSON reports
+  libgtest-dev libgmock-dev   # unit tests
+  libbenchmark-dev       # benchmarks
+  rt-tests               # cyclictest, the timing reference
+  clang-format clang-tidy
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+sudo_cmd=()
+[ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"
