@@ -1,5 +1,6 @@
 #include "trainer/core/arena.hpp"
 
+#include <cstdint>
 #include <cstring>
 #include <string>
 
@@ -13,6 +14,10 @@ std::size_t round_up(std::size_t value, std::size_t alignment) {
 
 Expected<Arena> Arena::create(std::size_t capacity_bytes) {
   if (capacity_bytes == 0) return make_error("arena: capacity must be positive");
+  if (capacity_bytes > static_cast<std::size_t>(-1) - kAlignment) {
+    return make_error("arena: capacity of " + std::to_string(capacity_bytes) +
+                      " bytes is impossible");
+  }
   const std::size_t capacity = round_up(capacity_bytes, kAlignment);
   auto* block = static_cast<std::byte*>(
       ::operator new(capacity, std::align_val_t{kAlignment}, std::nothrow));
@@ -55,6 +60,11 @@ Arena::~Arena() {
   if (block_ != nullptr) ::operator delete(block_, std::align_val_t{kAlignment});
 }
 
+Error Arena::count_overflow_error(std::string_view what) {
+  return make_error("arena: element count for '" + std::string(what) +
+                    "' overflows the addressable size");
+}
+
 Expected<void*> Arena::allocate_bytes(std::size_t bytes, std::size_t alignment,
                                       std::string_view what) {
   if (sealed_) {
@@ -65,7 +75,12 @@ Expected<void*> Arena::allocate_bytes(std::size_t bytes, std::size_t alignment,
   if (alignment == 0 || (alignment & (alignment - 1)) != 0) {
     return make_error("arena: alignment for '" + std::string(what) + "' is not a power of two");
   }
-  const std::size_t start = round_up(used_, alignment);
+  if (block_ == nullptr) {
+    return make_error("arena: request for '" + std::string(what) + "' on a moved-from arena");
+  }
+  // Align the real address, not the offset: the block itself is only kAlignment-aligned.
+  const auto base = reinterpret_cast<std::uintptr_t>(block_);
+  const std::size_t start = round_up(base + used_, alignment) - base;
   if (start > capacity_ || bytes > capacity_ - start) {
     return make_error("arena exhausted: '" + std::string(what) + "' needs " +
                       std::to_string(bytes) + " bytes but only " +

@@ -79,7 +79,8 @@ std::int64_t LatencyHistogram::percentile_ns(double fraction) const noexcept {
   std::uint64_t seen = 0;
   for (std::size_t i = 0; i < kBinCount; ++i) {
     seen += bins_[i];
-    if (seen >= rank) return std::min(bin_upper_ns(i) - 1, max_);
+    // The last bin is open-ended (overflow): only the exact maximum bounds it.
+    if (seen >= rank) return i == kBinCount - 1 ? max_ : std::min(bin_upper_ns(i) - 1, max_);
   }
   return max_;
 }

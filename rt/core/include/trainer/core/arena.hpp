@@ -34,9 +34,12 @@ class Arena {
   template <class T>
   Expected<std::span<T>> allocate_array(std::size_t count, std::string_view what) {
     static_assert(std::is_trivially_destructible_v<T>, "arena never runs destructors");
+    if (count > static_cast<std::size_t>(-1) / sizeof(T)) return count_overflow_error(what);
     auto raw = allocate_bytes(count * sizeof(T), alignof(T) > kAlignment ? alignof(T) : kAlignment, what);
     if (!raw) return std::move(raw).error();
-    T* typed = new (raw.value()) T[count]();  // placement array new: no heap
+    // Construct element by element: array placement-new may add an ABI cookie.
+    T* typed = static_cast<T*>(raw.value());
+    for (std::size_t i = 0; i < count; ++i) new (typed + i) T();
     return std::span<T>(typed, count);
   }
 
@@ -59,6 +62,7 @@ class Arena {
 
  private:
   Arena(std::byte* block, std::size_t capacity) noexcept : block_(block), capacity_(capacity) {}
+  static Error count_overflow_error(std::string_view what);
 
   std::byte* block_ = nullptr;
   std::size_t capacity_ = 0;

@@ -23,21 +23,22 @@ class MonotonicClock final : public Clock {
 };
 
 // Deterministic clock for tests and offline runs: time moves only when told to.
-// sleep_until_ns jumps to the deadline plus an optional injected wake-up latency.
+// sleep_until_ns jumps to the deadline plus the injected wake-up latency (applied to every
+// sleep until changed).
 class ManualClock final : public Clock {
  public:
   explicit ManualClock(std::int64_t start_ns = 0) noexcept : now_(start_ns) {}
   std::int64_t now_ns() noexcept override { return now_; }
   void sleep_until_ns(std::int64_t deadline_ns) noexcept override {
     if (deadline_ns > now_) now_ = deadline_ns;
-    now_ += next_wake_latency_ns_;
+    now_ += wake_latency_ns_;
   }
   void advance_ns(std::int64_t delta_ns) noexcept { now_ += delta_ns; }
-  void set_wake_latency_ns(std::int64_t latency_ns) noexcept { next_wake_latency_ns_ = latency_ns; }
+  void set_wake_latency_ns(std::int64_t latency_ns) noexcept { wake_latency_ns_ = latency_ns; }
 
  private:
   std::int64_t now_;
-  std::int64_t next_wake_latency_ns_ = 0;
+  std::int64_t wake_latency_ns_ = 0;
 };
 
 }  // namespace trainer::core

@@ -70,13 +70,22 @@ class FixedVectorRef {
   std::size_t capacity_;
 };
 
+namespace detail {
+// Base-from-member: the storage must exist before FixedVectorRef is handed a pointer to it,
+// so it lives in a base class listed first.
 template <class T, std::size_t N>
-class FixedVector final : public FixedVectorRef<T> {
+struct FixedStorage {
+  std::array<T, N> storage_{};
+};
+}  // namespace detail
+
+template <class T, std::size_t N>
+class FixedVector final : private detail::FixedStorage<T, N>, public FixedVectorRef<T> {
   static_assert(N > 0, "FixedVector needs a capacity");
 
  public:
-  FixedVector() noexcept : FixedVectorRef<T>(storage_.data(), N) {}
-  FixedVector(const FixedVector& other) noexcept : FixedVectorRef<T>(storage_.data(), N) {
+  FixedVector() noexcept : FixedVectorRef<T>(this->storage_.data(), N) {}
+  FixedVector(const FixedVector& other) noexcept : FixedVectorRef<T>(this->storage_.data(), N) {
     copy_from(other);
   }
   FixedVector& operator=(const FixedVector& other) noexcept {
@@ -88,10 +97,9 @@ class FixedVector final : public FixedVectorRef<T> {
 
  private:
   void copy_from(const FixedVector& other) noexcept {
-    for (std::size_t i = 0; i < other.size(); ++i) storage_[i] = other[i];
+    for (std::size_t i = 0; i < other.size(); ++i) this->storage_[i] = other[i];
     this->set_size(other.size());
   }
-  std::array<T, N> storage_{};
 };
 
 }  // namespace trainer::core

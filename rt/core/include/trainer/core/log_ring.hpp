@@ -106,7 +106,7 @@ class LogRing {
   LogRecord records_[kCapacity];
   alignas(64) std::atomic<std::size_t> head_{0};  // written by the producer
   alignas(64) std::atomic<std::size_t> tail_{0};  // written by the consumer
-  std::atomic<std::uint64_t> dropped_{0};
+  alignas(64) std::atomic<std::uint64_t> dropped_{0};  // producer-only writes: own line
 };
 
 }  // namespace trainer::core
