@@ -1,0 +1,132 @@
+// The haptic cycle (DESIGN.md "One cycle"): HAL read → kinematics → collide → forces →
+// safety → HAL write → publish. Everything it touches is created at configure time (the
+// per-instrument and per-object state lives in the arena); run_cycle() is noexcept, takes no
+// locks and allocates nothing. It names only HAL interfaces, never a concrete backend.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "trainer/app/telemetry.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/core/arena.hpp"
+#include "trainer/core/clock.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/core/log_ring.hpp"
+#include "trainer/core/triple_buffer.hpp"
+#include "trainer/hal/device.hpp"
+#include "trainer/hal/joint_scale.hpp"
+#include "trainer/kinematics/trocar_kinematics.hpp"
+#include "trainer/loop/periodic_loop.hpp"
+#include "trainer/model/rigid_contact.hpp"
+#include "trainer/safety/safety_supervisor.hpp"
+
+namespace trainer::app {
+
+struct HalBinding {
+  hal::EncoderInterface* encoders = nullptr;
+  hal::ActuatorInterface* actuators = nullptr;
+  hal::DigitalInputInterface* digital_inputs = nullptr;
+  hal::DigitalOutputInterface* digital_outputs = nullptr;
+};
+
+struct InstrumentStats {
+  float peak_force_n = 0.0F;
+  float peak_depth_m = 0.0F;
+  double force_sum_n = 0.0;  // over contact cycles, for the mean
+  std::uint64_t contact_cycles = 0;
+  std::uint64_t contact_onsets = 0;
+  std::array<float, 5> peak_joint_effort{};
+};
+
+struct AppStats {
+  std::uint64_t cycles = 0;
+  std::uint64_t hal_read_errors = 0;
+  std::uint64_t hal_write_errors = 0;
+  std::uint64_t invalid_encoder_cycles = 0;
+  std::uint64_t saturated_actuator_cycles = 0;
+  std::uint64_t armed_cycles = 0;
+  std::array<InstrumentStats, kMaxInstruments> instruments{};
+};
+
+class HapticApp final : public loop::CycleTask {
+ public:
+  // Consecutive HAL read/write errors tolerated (the cycle holds the last good state)
+  // before the device is declared lost and a fault latched.
+  static constexpr std::uint32_t kToleratedErrorStreak = 3;
+  static constexpr std::size_t kMaxObjects = 16;
+
+  // Setup path: checks the HAL offers the channels the scene needs and carves all cycle state
+  // from `arena`. Errors name the scene/device item that does not fit.
+  static core::Expected<std::unique_ptr<HapticApp>> create(
+      const config::SceneConfig& scene, HalBinding hal, core::Arena& arena, core::LogRing& log,
+      core::TripleBuffer<TelemetrySnapshot>& telemetry, core::Clock& clock);
+
+  core::Status run_cycle(const loop::CycleTiming& timing) noexcept override;
+  void on_overrun_fault(std::uint32_t streak) noexcept override;
+
+  // From any thread: ask the safety chain to arm at the next cycle (an explicit reset).
+  void request_reset() noexcept { reset_requested_.store(true, std::memory_order_release); }
+  // RT or non-RT, after the loop stopped: zero every output, disable drives, latch shutdown.
+  void shutdown() noexcept;
+
+  const AppStats& stats() const noexcept { return stats_; }
+  const safety::SafetySupervisor& safety() const noexcept { return safety_; }
+  std::size_t instrument_count() const noexcept { return instruments_.size(); }
+
+  HapticApp(const HapticApp&) = delete;
+  HapticApp& operator=(const HapticApp&) = delete;
+  ~HapticApp() = default;
+
+ private:
+  struct InstrumentState {
+    kinematics::TrocarKinematics kinematics;
+    std::array<hal::JointScale, 5> scales;
+    std::size_t first_channel = 0;
+    kinematics::JointVector position{};
+    kinematics::JointVector velocity{};
+    bool has_position = false;
+    bool was_in_contact = false;
+  };
+  struct ObjectState {
+    config::ObjectKind kind = config::ObjectKind::plane;
+    model::RigidPlane plane;
+    model::RigidSphere sphere;
+    std::uint32_t touched_by_mask = 0;  // bit per instrument
+  };
+
+  HapticApp(core::LogRing& log, core::TripleBuffer<TelemetrySnapshot>& telemetry,
+            core::Clock& clock, HalBinding hal, const safety::SafetyLimits& limits,
+            std::size_t instrument_count, const config::DigitalConfig& digital) noexcept;
+
+  bool read_inputs(const loop::CycleTiming& timing, safety::InputConditions& conditions) noexcept;
+  void update_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept;
+  void write_outputs(bool armed) noexcept;
+  void publish(const loop::CycleTiming& timing) noexcept;
+  void zero_commands() noexcept;
+
+  core::LogRing& log_;
+  core::TripleBuffer<TelemetrySnapshot>& telemetry_;
+  core::Clock& clock_;
+  HalBinding hal_;
+  safety::SafetySupervisor safety_;
+  config::DigitalConfig digital_;
+
+  // Cycle state, carved from the arena at create().
+  std::span<InstrumentState> instruments_;
+  std::span<ObjectState> objects_;
+  std::span<hal::EncoderSample> encoder_samples_;
+  std::span<hal::ActuatorCommand> commands_;
+  std::span<hal::ActuatorStatus> actuator_status_;
+  std::span<InstrumentTelemetry> instrument_out_;
+
+  AppStats stats_{};
+  std::uint32_t read_error_streak_ = 0;
+  std::uint32_t write_error_streak_ = 0;
+  std::uint32_t last_logged_faults_ = 0;
+  std::atomic<bool> reset_requested_{false};
+};
+
+}  // namespace trainer::app

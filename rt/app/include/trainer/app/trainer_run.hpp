@@ -1,0 +1,72 @@
+// One run of the trainer: load the scene, build the HAL backend it names, carve the arena,
+// start the RT thread, arm, supervise until the run ends or a stop signal arrives, shut down
+// with outputs zeroed, and return everything the report needs. The `trainer` program is a thin
+// CLI over run_trainer(); tests call it directly with a simulated clock.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "trainer/app/haptic_app.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/loop/periodic_loop.hpp"
+#include "trainer/loop/rt_settings.hpp"
+
+namespace trainer::app {
+
+enum class TimeSource : std::uint8_t {
+  real,       // CLOCK_MONOTONIC, real sleeps: the appliance
+  simulated,  // a manual clock: the loop and the simulated device run as fast as they can,
+              // deterministically (offline runs, tests, golden traces); sim HAL only
+};
+
+struct RunOptions {
+  std::filesystem::path scene_file;
+  std::string hal = "sim";
+  std::optional<std::uint64_t> cycles;  // run length; default: the trainee script's length
+  std::optional<double> seconds;
+  TimeSource time_source = TimeSource::real;
+  bool apply_rt_settings = true;  // SCHED_FIFO, affinity, mlockall from the scene's [loop]
+  bool arm = true;                // issue the explicit reset that arms the safety chain
+  // Called from the supervisor thread about 30 times a second with the newest snapshot.
+  std::function<void(const TelemetrySnapshot&)> on_telemetry;
+  // Receives formatted log lines drained from the RT log ring (default: stderr).
+  std::function<void(const std::string&)> on_log;
+};
+
+struct RunResult {
+  std::filesystem::path scene_file;
+  std::string scene_name;
+  std::string hal;
+  std::string time_source;
+  std::int64_t period_ns = 0;
+  std::uint64_t requested_cycles = 0;
+  loop::LoopStats loop;
+  loop::RtReport rt;
+  AppStats app;
+  std::uint32_t latched_faults = 0;        // at the end of the run, before shutdown
+  std::string first_fault;
+  std::uint64_t first_fault_cycle = 0;
+  std::vector<std::pair<std::string, std::uint64_t>> fault_counts;  // kinds raised, with counts
+  std::uint64_t force_clamped_cycles = 0;
+  std::uint64_t force_slew_limited_cycles = 0;
+  std::uint32_t arm_count = 0;
+  bool stopped_by_signal = false;
+  bool allocation_hooks_installed = false;
+  bool malloc_family_counted = false;
+  std::uint64_t heap_allocations_after_arming = 0;
+  std::size_t arena_bytes_used = 0;
+  std::size_t arena_bytes_capacity = 0;
+  std::uint64_t log_records_dropped = 0;
+  bool outputs_zeroed_at_exit = false;
+  double wall_time_s = 0.0;
+  std::vector<std::string> instrument_names;
+};
+
+core::Expected<RunResult> run_trainer(const RunOptions& options);
+
+}  // namespace trainer::app

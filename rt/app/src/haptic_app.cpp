@@ -1,0 +1,349 @@
+#include "trainer/app/haptic_app.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+namespace trainer::app {
+
+namespace {
+
+using kinematics::kJointCount;
+using Vec3 = Eigen::Vector3f;
+
+// Joint rates come from differentiated encoder positions, low-passed at this cutoff: high
+// enough not to lag the hand (human motion < 10 Hz), low enough to tame quantisation noise
+// (one count per cycle at 1 kHz would otherwise read as several rad/s).
+constexpr double kVelocityCutoffHz = 150.0;
+
+Vec3 to_vec3(const std::array<double, 3>& v) {
+  return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+}
+
+bool bit_set(std::uint32_t levels, int bit) {
+  return bit >= 0 && ((levels >> static_cast<unsigned>(bit)) & 1U) != 0;
+}
+
+safety::SafetyLimits limits_from(const config::SafetyConfig& cfg) {
+  safety::SafetyLimits limits;
+  limits.max_force_n = static_cast<float>(cfg.max_force_n);
+  limits.max_force_rate_n_per_s = static_cast<float>(cfg.max_force_rate_n_per_s);
+  limits.max_joint_speed_rad_per_s = static_cast<float>(cfg.max_joint_speed_rad_per_s);
+  limits.max_insertion_speed_m_per_s = static_cast<float>(cfg.max_insertion_speed_m_per_s);
+  limits.passivity_energy_bound_j = static_cast<float>(cfg.passivity_energy_bound_j);
+  limits.require_enable_input = cfg.require_enable_input;
+  return limits;
+}
+
+}  // namespace
+
+HapticApp::HapticApp(core::LogRing& log, core::TripleBuffer<TelemetrySnapshot>& telemetry,
+                     core::Clock& clock, HalBinding hal, const safety::SafetyLimits& limits,
+                     std::size_t instrument_count, const config::DigitalConfig& digital) noexcept
+    : log_(log),
+      telemetry_(telemetry),
+      clock_(clock),
+      hal_(hal),
+      safety_(limits, instrument_count),
+      digital_(digital) {}
+
+core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
+    const config::SceneConfig& scene, HalBinding hal, core::Arena& arena, core::LogRing& log,
+    core::TripleBuffer<TelemetrySnapshot>& telemetry, core::Clock& clock) {
+  const std::string where = scene.source_path.string();
+  if (hal.encoders == nullptr || hal.actuators == nullptr) {
+    return core::make_error(where + ": the selected HAL offers no encoders or no actuators");
+  }
+  const std::size_t instrument_count = scene.instruments.size();
+  if (instrument_count == 0 || instrument_count > kMaxInstruments) {
+    return core::make_error(where + ": a scene needs 1 to " + std::to_string(kMaxInstruments) +
+                            " instruments, it has " + std::to_string(instrument_count));
+  }
+  if (scene.objects.size() > kMaxObjects) {
+    return core::make_error(where + ": at most " + std::to_string(kMaxObjects) +
+                            " objects, the scene has " + std::to_string(scene.objects.size()));
+  }
+  const std::size_t channel_count = scene.device.instruments.size() * kJointCount;
+  if (hal.encoders->encoder_count() < channel_count ||
+      hal.actuators->actuator_count() < channel_count) {
+    return core::make_error(where + ": device '" + scene.device.name + "' offers " +
+                            std::to_string(hal.encoders->encoder_count()) + " encoders and " +
+                            std::to_string(hal.actuators->actuator_count()) +
+                            " actuators; the scene needs " + std::to_string(channel_count));
+  }
+
+  std::unique_ptr<HapticApp> app(new HapticApp(log, telemetry, clock, hal,
+                                               limits_from(scene.safety), instrument_count,
+                                               scene.device.digital));
+
+  auto instruments = arena.allocate_array<InstrumentState>(instrument_count, "instrument state");
+  if (!instruments) return std::move(instruments).error();
+  auto objects = arena.allocate_array<ObjectState>(scene.objects.size(), "rigid objects");
+  if (!objects) return std::move(objects).error();
+  auto samples = arena.allocate_array<hal::EncoderSample>(channel_count, "encoder samples");
+  if (!samples) return std::move(samples).error();
+  auto commands = arena.allocate_array<hal::ActuatorCommand>(channel_count, "actuator commands");
+  if (!commands) return std::move(commands).error();
+  auto status = arena.allocate_array<hal::ActuatorStatus>(channel_count, "actuator status");
+  if (!status) return std::move(status).error();
+  auto out = arena.allocate_array<InstrumentTelemetry>(instrument_count, "instrument telemetry");
+  if (!out) return std::move(out).error();
+  app->instruments_ = *instruments;
+  app->objects_ = *objects;
+  app->encoder_samples_ = *samples;
+  app->commands_ = *commands;
+  app->actuator_status_ = *status;
+  app->instrument_out_ = *out;
+
+  for (std::size_t i = 0; i < instrument_count; ++i) {
+    const std::size_t device_index = scene.instruments[i].device_instrument;
+    const config::InstrumentDeviceConfig& device = scene.device.instruments[device_index];
+    kinematics::TrocarGeometry geometry;
+    geometry.pivot_m = to_vec3(device.trocar_position_m);
+    geometry.shaft_axis = to_vec3(device.shaft_axis);
+    geometry.up_axis = to_vec3(device.up_axis);
+    geometry.shaft_length_m = static_cast<float>(device.shaft_length_m);
+    geometry.jaw_length_m = static_cast<float>(device.jaw_length_m);
+    InstrumentState& state = app->instruments_[i];
+    state.kinematics = kinematics::TrocarKinematics(geometry);
+    state.first_channel = device_index * kJointCount;
+    for (std::size_t j = 0; j < kJointCount; ++j) state.scales[j] = config::joint_scale(device.joints[j]);
+  }
+
+  for (std::size_t k = 0; k < scene.objects.size(); ++k) {
+    const config::ObjectConfig& object = scene.objects[k];
+    ObjectState& state = app->objects_[k];
+    state.kind = object.kind;
+    const model::PenaltyMaterial material{static_cast<float>(object.stiffness_n_per_m),
+                                          static_cast<float>(object.damping_n_s_per_m)};
+    if (object.kind == config::ObjectKind::plane) {
+      state.plane = model::RigidPlane(to_vec3(object.point_m), to_vec3(object.normal), material);
+    } else {
+      state.sphere = model::RigidSphere(to_vec3(object.center_m),
+                                        static_cast<float>(object.radius_m), material);
+    }
+    for (std::size_t instrument : object.touched_by) {
+      state.touched_by_mask |= 1U << static_cast<unsigned>(instrument);
+    }
+  }
+  return app;
+}
+
+bool HapticApp::read_inputs(const loop::CycleTiming& timing,
+                            safety::InputConditions& conditions) noexcept {
+  const hal::ReturnCode read = hal_.encoders->read_encoders(encoder_samples_);
+  bool encoders_ok = read == hal::ReturnCode::ok;
+  if (read == hal::ReturnCode::deactivate) safety_.latch(safety::Fault::device_lost, timing.cycle_index);
+  if (!encoders_ok) {
+    ++stats_.hal_read_errors;
+    if (++read_error_streak_ > kToleratedErrorStreak) {
+      safety_.latch(safety::Fault::device_lost, timing.cycle_index);
+    }
+  } else {
+    read_error_streak_ = 0;
+  }
+
+  if (hal_.digital_inputs != nullptr) {
+    std::uint32_t levels = 0;
+    if (hal_.digital_inputs->read_digital_inputs(levels) == hal::ReturnCode::ok) {
+      conditions.estop_active = bit_set(levels, digital_.estop_input_bit);
+      conditions.enable_held = digital_.enable_input_bit < 0 || bit_set(levels, digital_.enable_input_bit);
+    } else {
+      // Unreadable safety inputs count as pressed e-stop: fail safe.
+      conditions.estop_active = true;
+      ++stats_.hal_read_errors;
+    }
+  }
+
+  if (hal_.actuators->read_actuator_status(actuator_status_) != hal::ReturnCode::ok) {
+    conditions.drive_fault = true;
+  }
+  for (const hal::ActuatorStatus& status : actuator_status_) {
+    conditions.drive_fault = conditions.drive_fault || status.fault;
+    if (status.saturated) ++stats_.saturated_actuator_cycles;
+  }
+  return encoders_ok;
+}
+
+void HapticApp::update_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept {
+  InstrumentState& state = instruments_[index];
+  const auto dt = static_cast<float>(timing.dt_s);
+  const auto alpha = static_cast<float>(
+      timing.dt_s / (timing.dt_s + 1.0 / (2.0 * std::numbers::pi * kVelocityCutoffHz)));
+
+  bool all_valid = true;
+  kinematics::JointVector position{};
+  for (std::size_t j = 0; j < kJointCount; ++j) {
+    const hal::EncoderSample& sample = encoder_samples_[state.first_channel + j];
+    all_valid = all_valid && sample.valid;
+    position[j] = static_cast<float>(state.scales[j].position_from_counts(sample.counts));
+  }
+  if (!all_valid) {
+    ++stats_.invalid_encoder_cycles;
+    position = state.position;  // hold the last good reading; the error streak guards this
+  } else if (state.has_position) {
+    for (std::size_t j = 0; j < kJointCount; ++j) {
+      safety_.check_joint_step(state.scales[j].kind == hal::JointKind::prismatic,
+                               state.position[j], position[j], dt, timing.cycle_index);
+      const float raw_rate = (position[j] - state.position[j]) / dt;
+      state.velocity[j] += alpha * (raw_rate - state.velocity[j]);
+    }
+  }
+  if (all_valid) {
+    state.position = position;
+    state.has_position = true;
+  }
+
+  const kinematics::InstrumentPose pose = state.kinematics.forward(state.position);
+  const float tip_distance = pose.insertion_m;
+  const Vec3 tip_velocity =
+      kinematics::TrocarKinematics::point_velocity(pose, tip_distance, state.velocity);
+
+  Vec3 requested = Vec3::Zero();
+  bool in_contact = false;
+  float depth = 0.0F;
+  for (const ObjectState& object : objects_) {
+    if ((object.touched_by_mask & (1U << static_cast<unsigned>(index))) == 0) continue;
+    const model::PointContact contact = object.kind == config::ObjectKind::plane
+                                            ? object.plane.contact(pose.tip_m, tip_velocity)
+                                            : object.sphere.contact(pose.tip_m, tip_velocity);
+    if (contact.in_contact) {
+      in_contact = true;
+      depth = std::max(depth, contact.depth_m);
+      requested += contact.force_n;
+    }
+  }
+
+  Vec3 force = safety_.limit_force(index, requested, dt, timing.cycle_index);
+  safety_.observe_power(index, force, tip_velocity, dt, timing.cycle_index);
+
+  kinematics::JointVector efforts{};
+  kinematics::TrocarKinematics::add_joint_efforts(pose, tip_distance, force, Vec3::Zero(), efforts);
+  for (float effort : efforts) {
+    if (!std::isfinite(effort)) safety_.latch(safety::Fault::non_finite, timing.cycle_index);
+  }
+  if (!safety_.armed()) {
+    force.setZero();
+    efforts.fill(0.0F);
+  }
+  for (std::size_t j = 0; j < kJointCount; ++j) {
+    commands_[state.first_channel + j].effort = efforts[j];
+  }
+
+  InstrumentStats& stats = stats_.instruments[index];
+  const float force_norm = force.norm();
+  if (in_contact) {
+    ++stats.contact_cycles;
+    if (!state.was_in_contact) ++stats.contact_onsets;
+    stats.force_sum_n += static_cast<double>(force_norm);
+  }
+  state.was_in_contact = in_contact;
+  stats.peak_force_n = std::max(stats.peak_force_n, force_norm);
+  stats.peak_depth_m = std::max(stats.peak_depth_m, depth);
+  for (std::size_t j = 0; j < kJointCount; ++j) {
+    stats.peak_joint_effort[j] = std::max(stats.peak_joint_effort[j], std::fabs(efforts[j]));
+  }
+
+  InstrumentTelemetry& out = instrument_out_[index];
+  out.joints = state.position;
+  out.tip_m = {pose.tip_m.x(), pose.tip_m.y(), pose.tip_m.z()};
+  out.force_n = {force.x(), force.y(), force.z()};
+  out.joint_efforts = efforts;
+  out.in_contact = in_contact;
+}
+
+void HapticApp::zero_commands() noexcept {
+  for (hal::ActuatorCommand& command : commands_) command = hal::ActuatorCommand{};
+}
+
+void HapticApp::write_outputs(bool armed) noexcept {
+  // A faulted or unarmed controller still writes every cycle: zero effort, drives disabled,
+  // so the drives' own watchdogs see a live host holding them safe.
+  if (!armed) zero_commands();
+  for (hal::ActuatorCommand& command : commands_) command.enable = armed;
+  const hal::ReturnCode written = hal_.actuators->write_actuators(commands_);
+  if (written == hal::ReturnCode::deactivate) {
+    safety_.latch(safety::Fault::drive_fault, stats_.cycles);
+  } else if (written != hal::ReturnCode::ok) {
+    ++stats_.hal_write_errors;
+    if (++write_error_streak_ > kToleratedErrorStreak) {
+      safety_.latch(safety::Fault::device_lost, stats_.cycles);
+    }
+  } else {
+    write_error_streak_ = 0;
+  }
+  if (hal_.digital_outputs != nullptr) {
+    std::uint32_t levels = 0;
+    if (armed && digital_.drive_enable_output_bit >= 0) {
+      levels |= 1U << static_cast<unsigned>(digital_.drive_enable_output_bit);
+    }
+    if (!armed && digital_.fault_lamp_output_bit >= 0) {
+      levels |= 1U << static_cast<unsigned>(digital_.fault_lamp_output_bit);
+    }
+    (void)hal_.digital_outputs->write_digital_outputs(levels);
+  }
+}
+
+void HapticApp::publish(const loop::CycleTiming& timing) noexcept {
+  TelemetrySnapshot& snapshot = telemetry_.write_slot();
+  snapshot.cycle = timing.cycle_index;
+  snapshot.time_ns = timing.wake_ns;
+  snapshot.latched_faults = safety_.latched_faults();
+  snapshot.instrument_count = static_cast<std::uint32_t>(instrument_out_.size());
+  for (std::size_t i = 0; i < instrument_out_.size(); ++i) snapshot.instruments[i] = instrument_out_[i];
+  telemetry_.publish();
+}
+
+core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
+  ++stats_.cycles;
+  if (reset_requested_.exchange(false, std::memory_order_acq_rel)) safety_.request_reset();
+
+  safety::InputConditions conditions;
+  const bool encoders_ok = read_inputs(timing, conditions);
+  const bool was_armed = safety_.armed();
+  safety_.evaluate_inputs(conditions, timing.cycle_index);
+  if (!was_armed && safety_.armed()) {
+    log_.write(timing.wake_ns, core::LogLevel::info, "armed at cycle {}", timing.cycle_index);
+    for (InstrumentState& state : instruments_) state.velocity.fill(0.0F);
+  }
+
+  for (std::size_t i = 0; i < instruments_.size(); ++i) update_instrument(i, timing);
+
+  const bool armed = safety_.armed();
+  if (armed) ++stats_.armed_cycles;
+  write_outputs(armed);
+
+  const std::uint32_t faults = safety_.latched_faults();
+  const std::uint32_t new_faults = faults & ~last_logged_faults_;
+  if (new_faults != 0) {
+    for (std::uint32_t bit = 1; bit != 0; bit <<= 1U) {
+      if ((new_faults & bit) != 0 && bit != safety::bit(safety::Fault::not_armed)) {
+        log_.write(timing.wake_ns, core::LogLevel::error, "fault latched: {} at cycle {}",
+                   safety::to_string(static_cast<safety::Fault>(bit)), timing.cycle_index);
+      }
+    }
+  }
+  last_logged_faults_ = faults;
+
+  publish(timing);
+  return encoders_ok ? core::Status::ok()
+                     : core::Status{core::StatusCode::io_error, "encoder read failed"};
+}
+
+void HapticApp::on_overrun_fault(std::uint32_t streak) noexcept {
+  safety_.latch(safety::Fault::overrun_streak, stats_.cycles);
+  zero_commands();
+  (void)hal_.actuators->write_actuators(commands_);
+  log_.write(clock_.now_ns(), core::LogLevel::error, "overrun streak of {} cycles: force zeroed",
+             streak);
+}
+
+void HapticApp::shutdown() noexcept {
+  safety_.latch(safety::Fault::shutdown, stats_.cycles);
+  zero_commands();
+  (void)hal_.actuators->write_actuators(commands_);
+  if (hal_.digital_outputs != nullptr) (void)hal_.digital_outputs->write_digital_outputs(0);
+}
+
+}  // namespace trainer::app

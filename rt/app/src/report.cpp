@@ -1,0 +1,149 @@
+#include "trainer/app/report.hpp"
+
+#include <cstdio>
+#include <sstream>
+
+namespace trainer::app {
+
+namespace {
+
+nlohmann::json percentiles(const core::LatencyHistogram& histogram) {
+  return {
+      {"count", histogram.count()},
+      {"min", histogram.min_ns()},
+      {"p50", histogram.percentile_ns(0.50)},
+      {"p99", histogram.percentile_ns(0.99)},
+      {"p99_9", histogram.percentile_ns(0.999)},
+      {"max", histogram.max_ns()},
+      {"mean", histogram.mean_ns()},
+  };
+}
+
+std::string microseconds(std::int64_t ns) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.1f", static_cast<double>(ns) * 1e-3);
+  return buffer;
+}
+
+std::string latency_line(const char* label, const core::LatencyHistogram& h) {
+  return std::string(label) + " p50 " + microseconds(h.percentile_ns(0.5)) + "  p99 " +
+         microseconds(h.percentile_ns(0.99)) + "  p99.9 " + microseconds(h.percentile_ns(0.999)) +
+         "  max " + microseconds(h.max_ns()) + " us";
+}
+
+}  // namespace
+
+nlohmann::json report_json(const RunResult& r) {
+  nlohmann::json instruments = nlohmann::json::array();
+  for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {
+    const InstrumentStats& s = r.app.instruments[i];
+    instruments.push_back({
+        {"name", r.instrument_names[i]},
+        {"peak_force_n", s.peak_force_n},
+        {"mean_contact_force_n",
+         s.contact_cycles > 0 ? s.force_sum_n / static_cast<double>(s.contact_cycles) : 0.0},
+        {"peak_depth_m", s.peak_depth_m},
+        {"contact_cycles", s.contact_cycles},
+        {"contact_onsets", s.contact_onsets},
+        {"peak_joint_effort", {{"pitch_nm", s.peak_joint_effort[0]},
+                               {"yaw_nm", s.peak_joint_effort[1]},
+                               {"insertion_n", s.peak_joint_effort[2]},
+                               {"roll_nm", s.peak_joint_effort[3]},
+                               {"grip_nm", s.peak_joint_effort[4]}}},
+    });
+  }
+  nlohmann::json fault_counts = nlohmann::json::object();
+  for (const auto& [name, count] : r.fault_counts) fault_counts[name] = count;
+
+  return {
+      {"schema_version", kReportSchemaVersion},
+      {"scene", {{"file", r.scene_file.string()}, {"name", r.scene_name}}},
+      {"hal", r.hal},
+      {"time_source", r.time_source},
+      {"period_ns", r.period_ns},
+      {"requested_cycles", r.requested_cycles},
+      {"cycles", r.loop.cycles},
+      {"wall_time_s", r.wall_time_s},
+      {"stopped_by_signal", r.stopped_by_signal},
+      {"overruns", r.loop.overruns},
+      {"longest_overrun_streak", r.loop.longest_overrun_streak},
+      {"skipped_periods", r.loop.skipped_periods},
+      {"cycle_errors", r.loop.cycle_errors},
+      {"wake_latency_ns", percentiles(r.loop.wake_latency)},
+      {"step_time_ns", percentiles(r.loop.step_time)},
+      {"period_measured_ns", percentiles(r.loop.period)},
+      {"memory",
+       {{"heap_allocations_after_arming", r.heap_allocations_after_arming},
+        {"allocation_counting", r.allocation_hooks_installed
+                                    ? (r.malloc_family_counted ? "operator new and malloc family"
+                                                               : "operator new only (sanitizer build)")
+                                    : "not measured (allocation hooks not linked)"},
+        {"arena_bytes_used", r.arena_bytes_used},
+        {"arena_bytes_capacity", r.arena_bytes_capacity}}},
+      {"rt",
+       {{"policy", r.rt.policy},
+        {"priority", r.rt.priority},
+        {"cpu", r.rt.cpu},
+        {"memory_locked", r.rt.memory_locked},
+        {"preempt_rt", r.rt.preempt_rt},
+        {"kernel_release", r.rt.kernel_release},
+        {"kernel_version", r.rt.kernel_version},
+        {"warnings", r.rt.warnings}}},
+      {"safety",
+       {{"faults_latched_at_end", r.latched_faults},
+        {"first_fault", r.first_fault},
+        {"first_fault_cycle", r.first_fault_cycle},
+        {"fault_counts", fault_counts},
+        {"arm_count", r.arm_count},
+        {"force_clamped_cycles", r.force_clamped_cycles},
+        {"force_slew_limited_cycles", r.force_slew_limited_cycles},
+        {"outputs_zeroed_at_exit", r.outputs_zeroed_at_exit}}},
+      {"hal_errors",
+       {{"read", r.app.hal_read_errors},
+        {"write", r.app.hal_write_errors},
+        {"invalid_encoder_cycles", r.app.invalid_encoder_cycles},
+        {"saturated_actuator_cycles", r.app.saturated_actuator_cycles}}},
+      {"armed_cycles", r.app.armed_cycles},
+      {"instruments", instruments},
+      {"log_records_dropped", r.log_records_dropped},
+  };
+}
+
+std::string report_summary(const RunResult& r) {
+  std::ostringstream out;
+  out << "trainer: scene '" << r.scene_name << "' on hal '" << r.hal << "' (" << r.time_source
+      << " time)\n";
+  out << "  cycles " << r.loop.cycles << " at " << microseconds(r.period_ns) << " us period, "
+      << "wall time " << r.wall_time_s << " s"
+      << (r.stopped_by_signal ? " (stopped by signal)" : "") << "\n";
+  out << "  " << latency_line("wake-up latency:", r.loop.wake_latency) << "\n";
+  out << "  " << latency_line("step time:      ", r.loop.step_time) << "\n";
+  out << "  overruns " << r.loop.overruns << ", longest streak " << r.loop.longest_overrun_streak
+      << ", skipped periods " << r.loop.skipped_periods << "\n";
+  out << "  heap allocations after arming: " << r.heap_allocations_after_arming
+      << (r.allocation_hooks_installed ? "" : " (not measured)") << "; arena "
+      << r.arena_bytes_used << " of " << r.arena_bytes_capacity << " bytes\n";
+  out << "  rt: " << r.rt.policy << " priority " << r.rt.priority << ", cpu "
+      << (r.rt.cpu < 0 ? std::string("any") : std::to_string(r.rt.cpu)) << ", mlock "
+      << (r.rt.memory_locked ? "yes" : "no") << ", kernel " << r.rt.kernel_release
+      << (r.rt.preempt_rt ? " (PREEMPT_RT)" : " (not PREEMPT_RT)") << "\n";
+  for (const std::string& warning : r.rt.warnings) out << "  warning: " << warning << "\n";
+  for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {
+    const InstrumentStats& s = r.app.instruments[i];
+    out << "  instrument '" << r.instrument_names[i] << "': peak force " << s.peak_force_n
+        << " N, peak depth " << s.peak_depth_m * 1e3F << " mm, contact cycles "
+        << s.contact_cycles << "\n";
+  }
+  out << "  safety: armed " << r.arm_count << " time(s), armed cycles " << r.app.armed_cycles;
+  if (r.fault_counts.empty()) {
+    out << ", no faults";
+  } else {
+    out << ", first fault '" << r.first_fault << "' at cycle " << r.first_fault_cycle
+        << "; raised:";
+    for (const auto& [name, count] : r.fault_counts) out << " " << name << "×" << count;
+  }
+  out << "\n  outputs zeroed at exit: " << (r.outputs_zeroed_at_exit ? "yes" : "NO") << "\n";
+  return out.str();
+}
+
+}  // namespace trainer::app

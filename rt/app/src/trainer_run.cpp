@@ -1,0 +1,210 @@
+#include "trainer/app/trainer_run.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "trainer/app/sim_wiring.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/core/alloc_counter.hpp"
+#include "trainer/core/arena.hpp"
+#include "trainer/core/clock.hpp"
+#include "trainer/core/log_ring.hpp"
+#include "trainer/core/triple_buffer.hpp"
+#include "trainer/hal_sim/sim_device.hpp"
+#include "trainer/loop/rt_thread.hpp"
+#include "trainer/loop/stop_signals.hpp"
+
+namespace trainer::app {
+
+namespace {
+
+constexpr std::int64_t kSupervisorPeriodNs = 33'000'000;  // ~30 Hz telemetry / log drain
+constexpr double kScriptTailS = 0.5;  // keep running briefly after the script's last keyframe
+
+void drain_log(core::LogRing& ring, const RunOptions& options) {
+  core::LogRecord record;
+  while (ring.pop(record)) {
+    char stamp[48];
+    std::snprintf(stamp, sizeof stamp, "[%.6f s] ", static_cast<double>(record.time_ns) * 1e-9);
+    std::string line(stamp);
+    line.append(core::to_string(record.level)).append(": ").append(core::format_log_record(record));
+    if (options.on_log) {
+      options.on_log(line);
+    } else {
+      std::cerr << line << '\n';
+    }
+  }
+}
+
+core::Expected<std::uint64_t> cycles_to_run(const RunOptions& options,
+                                            const config::SceneConfig& scene,
+                                            double script_duration_s) {
+  const double period_s = static_cast<double>(scene.loop.period_ns) * 1e-9;
+  if (options.cycles) return *options.cycles;
+  if (options.seconds) {
+    if (!(*options.seconds > 0.0)) return core::make_error("--seconds must be positive");
+    return static_cast<std::uint64_t>(std::ceil(*options.seconds / period_s));
+  }
+  if (scene.trainee.end_run_with_script && script_duration_s > 0.0) {
+    return static_cast<std::uint64_t>(std::ceil((script_duration_s + kScriptTailS) / period_s));
+  }
+  if (options.time_source == TimeSource::simulated) {
+    return core::make_error(
+        "simulated time needs a run length: give --cycles or --seconds (or a scene whose "
+        "trainee script ends, with trainee.end_run_with_script = true)");
+  }
+  return std::uint64_t{0};  // until SIGINT/SIGTERM
+}
+
+}  // namespace
+
+core::Expected<RunResult> run_trainer(const RunOptions& options) {
+  auto scene = config::load_scene(options.scene_file);
+  if (!scene) return std::move(scene).error();
+  if (options.hal != "sim") {
+    return core::make_error("--hal " + options.hal +
+                            ": unknown backend; this build offers 'sim' (the simulated bench)");
+  }
+
+  // Block SIGINT/SIGTERM before any thread exists so every thread inherits the mask and only
+  // this supervisor thread receives them (no async handler runs on the RT thread).
+  loop::StopSignals signals;
+
+  std::unique_ptr<core::Clock> clock;
+  if (options.time_source == TimeSource::simulated) {
+    clock = std::make_unique<core::ManualClock>(0);
+  } else {
+    clock = std::make_unique<core::MonotonicClock>();
+  }
+
+  hal::sim::SimDevice device(*clock, sim_params_from(*scene));
+  if (auto configured = device.configure(); !configured) {
+    return core::make_error(scene->device.source_path.string() + ": " + configured.error().message);
+  }
+  if (auto activated = device.activate(); !activated) {
+    return core::make_error(scene->device.source_path.string() + ": " + activated.error().message);
+  }
+
+  auto arena = core::Arena::create(scene->memory.arena_bytes);
+  if (!arena) return std::move(arena).error();
+  auto log = std::make_unique<core::LogRing>();
+  auto telemetry = std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
+  HalBinding binding{device.encoders(), device.actuators(), device.digital_inputs(),
+                     device.digital_outputs()};
+  auto app = HapticApp::create(*scene, binding, *arena, *log, *telemetry, *clock);
+  if (!app) {
+    device.deactivate();
+    return std::move(app).error();
+  }
+  auto cycles = cycles_to_run(options, *scene, device.script_duration_s());
+  if (!cycles) {
+    device.deactivate();
+    return std::move(cycles).error();
+  }
+  arena->seal();  // from here on nothing may be carved from the arena
+
+  RunResult result;
+  result.scene_file = options.scene_file;
+  result.scene_name = scene->name;
+  result.hal = options.hal;
+  result.time_source = options.time_source == TimeSource::real ? "real" : "simulated";
+  result.period_ns = scene->loop.period_ns;
+  result.requested_cycles = *cycles;
+  for (const auto& instrument : scene->instruments) result.instrument_names.push_back(instrument.name);
+
+  loop::PeriodicLoop periodic(*clock, loop::LoopSettings{scene->loop.period_ns,
+                                                         scene->loop.overrun_streak_limit,
+                                                         *cycles});
+  if (options.arm) (*app)->request_reset();
+
+  loop::RtRequest request;
+  request.priority = scene->loop.priority;
+  request.cpu = scene->loop.cpu;
+  request.lock_memory = scene->loop.lock_memory;
+  request.stack_prefault_bytes = scene->loop.stack_prefault_bytes;
+  const bool apply_rt = options.apply_rt_settings && options.time_source == TimeSource::real;
+
+  std::atomic<bool> stop{false};
+  std::atomic<bool> finished{false};
+  std::uint64_t allocations = 0;
+  HapticApp& haptic = **app;
+  const auto wall_start = std::chrono::steady_clock::now();
+
+  auto thread = loop::RtThread::start([&] {
+    if (apply_rt) {
+      result.rt = loop::apply_rt_settings(request);
+    } else {
+      result.rt.policy = "SCHED_OTHER";
+      result.rt.preempt_rt = loop::kernel_is_preempt_rt();
+      result.rt.warnings.push_back(options.time_source == TimeSource::simulated
+                                       ? "RT settings not applied: simulated time"
+                                       : "RT settings not applied: disabled by the caller");
+    }
+    loop::prefault_stack(request.stack_prefault_bytes);
+    // Armed: from here to the end of the loop this thread may not touch the heap.
+    core::alloc::begin_counting_this_thread();
+    const std::uint64_t before = core::alloc::counted_allocations();
+    periodic.run(haptic, stop);
+    allocations = core::alloc::counted_allocations() - before;
+    core::alloc::end_counting_this_thread();
+
+    // The safety record as the run left it; the shutdown latch that follows is routine.
+    const safety::SafetySupervisor& safety = haptic.safety();
+    result.latched_faults = safety.latched_faults();
+    result.first_fault = safety::to_string(safety.first_fault());
+    result.first_fault_cycle = safety.first_fault_cycle();
+    for (std::size_t k = 0; k < safety::kFaultKinds; ++k) {
+      if (safety.fault_counts()[k] == 0) continue;
+      result.fault_counts.emplace_back(safety::to_string(static_cast<safety::Fault>(1U << k)),
+                                       safety.fault_counts()[k]);
+    }
+    haptic.shutdown();
+    finished.store(true, std::memory_order_release);
+  });
+  if (!thread) {
+    device.deactivate();
+    return std::move(thread).error();
+  }
+
+  while (!finished.load(std::memory_order_acquire)) {
+    if (signals.wait_for(kSupervisorPeriodNs) != 0) {
+      result.stopped_by_signal = true;
+      stop.store(true, std::memory_order_release);
+    }
+    drain_log(*log, options);
+    if (telemetry->update() && options.on_telemetry) options.on_telemetry(telemetry->latest());
+  }
+  thread->join();
+  drain_log(*log, options);
+  device.deactivate();
+
+  // Shutdown check through the HAL itself: every channel reports zero effort, disabled.
+  std::vector<hal::ActuatorStatus> status(device.actuators()->actuator_count());
+  (void)device.actuators()->read_actuator_status(status);
+  result.outputs_zeroed_at_exit = true;
+  for (const hal::ActuatorStatus& s : status) {
+    if (s.applied_effort != 0.0F || s.enabled) result.outputs_zeroed_at_exit = false;
+  }
+
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  result.loop = periodic.stats();
+  result.app = haptic.stats();
+  const safety::SafetySupervisor& safety = haptic.safety();
+  result.force_clamped_cycles = safety.clamped_cycles();
+  result.force_slew_limited_cycles = safety.slew_limited_cycles();
+  result.arm_count = safety.arm_count();
+  result.allocation_hooks_installed = core::alloc::hooks_installed();
+  result.malloc_family_counted = core::alloc::malloc_family_counted();
+  result.heap_allocations_after_arming = allocations;
+  result.arena_bytes_used = arena->used_bytes();
+  result.arena_bytes_capacity = arena->capacity_bytes();
+  result.log_records_dropped = log->dropped();
+  return result;
+}
+
+}  // namespace trainer::app

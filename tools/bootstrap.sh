@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# The README's two entry points.
+#   tools/bootstrap.sh run   install dependencies, build (release), run the main job:
+#                            the default scene on the simulated device, report in out/
+#   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
+#                            suite, the ASan+UBSan unit tests and the TSan concurrency tests
+# Extra arguments after `run` go to the trainer (e.g. --scene FILE --seconds 5).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+jobs=$(nproc 2>/dev/null || echo 2)
+mode=${1:-}
+[ $# -gt 0 ] && shift
+
+build() {  # build PRESET [TARGET...]
+  local preset=$1; shift
+  cmake --preset "$preset" >/dev/null
+  if [ $# -gt 0 ]; then
+    cmake --build --preset "$preset" -j "$jobs" --target "$@"
+  else
+    cmake --build --preset "$preset" -j "$jobs"
+  fi
+}
+
+case "$mode" in
+  run)
+    tools/install-deps.sh
+    build release trainer
+    mkdir -p out
+    scene=config/scenes/wall.toml
+    args=("$@")
+    if [[ " ${args[*]:-} " != *" --scene "* ]]; then args=(--scene "$scene" "${args[@]}"); fi
+    if [[ " ${args[*]:-} " != *" --report "* ]]; then args+=(--report out/report.json); fi
+    exec build/release/bin/trainer --hal sim "${args[@]}"
+    ;;
+  test)
+    tools/install-deps.sh
+    echo "== release build and full test suite"
+    build release
+    ctest --preset release -j "$jobs"
+    echo "== ASan+UBSan build: unit tests"
+    build asan
+    ctest --preset asan -j "$jobs"
+    echo "== TSan build: concurrency tests"
+    build tsan
+    ctest --preset tsan -j "$jobs"
+    echo "== all test suites passed"
+    ;;
+  *)
+    echo "usage: tools/bootstrap.sh run [trainer args...] | test" >&2
+    exit 2
+    ;;
+esac
