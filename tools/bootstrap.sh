@@ -42,7 +42,7 @@ case "$mode" in
     build asan
     ctest --preset asan -j "$jobs"
     echo "== TSan build: concurrency tests"
-    build tsan
+    build tsan concurrency_tests
     ctest --preset tsan -j "$jobs"
     echo "== all test suites passed"
     ;;

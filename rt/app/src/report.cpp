@@ -85,6 +85,7 @@ nlohmann::json report_json(const RunResult& r) {
         {"priority", r.rt.priority},
         {"cpu", r.rt.cpu},
         {"memory_locked", r.rt.memory_locked},
+        {"cpu_dma_latency_us", r.rt.cpu_dma_latency_us},
         {"preempt_rt", r.rt.preempt_rt},
         {"kernel_release", r.rt.kernel_release},
         {"kernel_version", r.rt.kernel_version},
@@ -125,7 +126,10 @@ std::string report_summary(const RunResult& r) {
       << r.arena_bytes_used << " of " << r.arena_bytes_capacity << " bytes\n";
   out << "  rt: " << r.rt.policy << " priority " << r.rt.priority << ", cpu "
       << (r.rt.cpu < 0 ? std::string("any") : std::to_string(r.rt.cpu)) << ", mlock "
-      << (r.rt.memory_locked ? "yes" : "no") << ", kernel " << r.rt.kernel_release
+      << (r.rt.memory_locked ? "yes" : "no") << ", cpu wake-up latency "
+      << (r.rt.cpu_dma_latency_us < 0 ? std::string("default")
+                                      : std::to_string(r.rt.cpu_dma_latency_us) + " us")
+      << ", kernel " << r.rt.kernel_release
       << (r.rt.preempt_rt ? " (PREEMPT_RT)" : " (not PREEMPT_RT)") << "\n";
   for (const std::string& warning : r.rt.warnings) out << "  warning: " << warning << "\n";
   for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {

@@ -128,6 +128,10 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   request.stack_prefault_bytes = scene->loop.stack_prefault_bytes;
   const bool apply_rt = options.apply_rt_settings && options.time_source == TimeSource::real;
 
+  // Held until this function returns, i.e. for the whole loop.
+  loop::CpuLatencyRequest cpu_latency;
+  if (apply_rt) cpu_latency = loop::CpuLatencyRequest::hold(scene->loop.cpu_dma_latency_us);
+
   std::atomic<bool> stop{false};
   std::atomic<bool> finished{false};
   std::uint64_t allocations = 0;
@@ -179,6 +183,8 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
     if (telemetry->update() && options.on_telemetry) options.on_telemetry(telemetry->latest());
   }
   thread->join();
+  result.rt.cpu_dma_latency_us = cpu_latency.latency_us();
+  if (!cpu_latency.warning().empty()) result.rt.warnings.push_back(cpu_latency.warning());
   drain_log(*log, options);
   device.deactivate();
 

@@ -48,6 +48,7 @@ constexpr std::int64_t kDefaultOverrunStreakLimit = 10;
 constexpr IntRange kPriorityRange{0, 99};
 constexpr IntRange kCpuRange{-1, 1023};
 constexpr IntRange kStackPrefaultRangeKib{0, 65536};
+constexpr IntRange kCpuDmaLatencyRangeUs{-1, 10000};
 constexpr std::int64_t kDefaultStackPrefaultKib = 256;
 constexpr IntRange kArenaRangeKib{1, 1048576};
 constexpr std::int64_t kDefaultArenaKib = 1024;
@@ -83,6 +84,9 @@ LoopConfig read_loop(TableReader& table) {
       static_cast<std::size_t>(table.optional_int("stack_prefault_kib", kDefaultStackPrefaultKib,
                                                   kStackPrefaultRangeKib, "kibibytes") *
                                kBytesPerKib);
+  loop.cpu_dma_latency_us = static_cast<int>(
+      table.optional_int("cpu_dma_latency_us", -1, kCpuDmaLatencyRangeUs,
+                         "microseconds, -1 = no request"));
   table.finish();
   return loop;
 }

@@ -295,4 +295,48 @@ std::optional<std::uint64_t> locked_memory_kib() {
   return kib;
 }
 
+CpuLatencyRequest CpuLatencyRequest::hold(int latency_us) {
+  CpuLatencyRequest request;
+  if (latency_us < 0) return request;
+  const char* path = "/dev/cpu_dma_latency";
+  const int fd = ::open(path, O_WRONLY | O_CLOEXEC);
+  if (fd < 0) {
+    request.warning_ = std::string("CPU wake-up latency of ") + std::to_string(latency_us) +
+                       " us not requested: cannot open " + path + ": " + std::strerror(errno) +
+                       " (needs root; deep CPU idle states will add wake-up latency)";
+    return request;
+  }
+  // The kernel takes a binary s32 in microseconds; the request lasts while fd stays open.
+  const std::int32_t value = latency_us;
+  if (::write(fd, &value, sizeof value) != static_cast<ssize_t>(sizeof value)) {
+    request.warning_ = std::string("CPU wake-up latency of ") + std::to_string(latency_us) +
+                       " us not requested: write to " + path + " failed: " + std::strerror(errno);
+    ::close(fd);
+    return request;
+  }
+  request.fd_ = fd;
+  request.latency_us_ = latency_us;
+  return request;
+}
+
+CpuLatencyRequest::CpuLatencyRequest(CpuLatencyRequest&& other) noexcept
+    : fd_(other.fd_), latency_us_(other.latency_us_), warning_(std::move(other.warning_)) {
+  other.fd_ = -1;
+}
+
+CpuLatencyRequest& CpuLatencyRequest::operator=(CpuLatencyRequest&& other) noexcept {
+  if (this != &other) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = other.fd_;
+    latency_us_ = other.latency_us_;
+    warning_ = std::move(other.warning_);
+    other.fd_ = -1;
+  }
+  return *this;
+}
+
+CpuLatencyRequest::~CpuLatencyRequest() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
 }  // namespace trainer::loop

@@ -338,6 +338,8 @@ const SceneErrorCase kSceneErrorCases[] = {
      "loop.lock_memory = 1 has type integer: expected boolean (true or false)"},
     {"stack_prefault_above_range", "stack_prefault_kib = 256", "stack_prefault_kib = 65537",
      "loop.stack_prefault_kib = 65537 is out of range: expected 0 to 65536 (kibibytes)"},
+    {"cpu_dma_latency_below_range", "cpu_dma_latency_us = 0", "cpu_dma_latency_us = -2",
+     "loop.cpu_dma_latency_us = -2 is out of range: expected -1 to 10000 (microseconds, -1 = no request)"},
     {"arena_zero", "arena_kib = 1024", "arena_kib = 0",
      "memory.arena_kib = 0 is out of range: expected 1 to 1048576 (kibibytes)"},
     {"max_force_typo", "max_force_n = 8.0", "max_forse_n = 8.0",

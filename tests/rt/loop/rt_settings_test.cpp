@@ -281,5 +281,28 @@ TEST(RtSettings, PrefaultStackMakesThePagesResident) {
   EXPECT_EQ(resident_after, total);
 }
 
+TEST(CpuLatencyRequest, NoRequestHoldsNothing) {
+  const CpuLatencyRequest none = CpuLatencyRequest::hold(-1);
+  EXPECT_FALSE(none.held());
+  EXPECT_EQ(none.latency_us(), -1);
+  EXPECT_TRUE(none.warning().empty());
+}
+
+TEST(CpuLatencyRequest, HeldWhilePermittedElseWarns) {
+  // As root the PM QoS device accepts the request; otherwise the refusal must be explained.
+  CpuLatencyRequest request = CpuLatencyRequest::hold(0);
+  const bool can_open = ::access("/dev/cpu_dma_latency", W_OK) == 0;
+  EXPECT_EQ(request.held(), can_open) << request.warning();
+  if (request.held()) {
+    EXPECT_EQ(request.latency_us(), 0);
+    // Moving keeps exactly one owner of the descriptor.
+    CpuLatencyRequest moved = std::move(request);
+    EXPECT_TRUE(moved.held());
+    EXPECT_FALSE(request.held());  // NOLINT(bugprone-use-after-move): checking the moved-from state
+  } else {
+    EXPECT_NE(request.warning().find("/dev/cpu_dma_latency"), std::string::npos);
+  }
+}
+
 }  // namespace
 }  // namespace trainer::loop

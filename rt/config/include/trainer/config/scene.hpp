@@ -28,6 +28,7 @@ struct LoopConfig {                        // [loop]
   int cpu = -1;                            // CPU to pin the haptic thread to; -1 = no pinning
   bool lock_memory = false;                // mlockall(MCL_CURRENT | MCL_FUTURE) before arming
   std::size_t stack_prefault_bytes = 0;    // stack touched before arming, from stack_prefault_kib
+  int cpu_dma_latency_us = -1;             // PM QoS wake-up latency held while running; -1 = none
 };
 
 struct MemoryConfig {           // [memory]

@@ -35,6 +35,8 @@ struct RtReport {
   // This call locked the process memory (mlockall succeeded and /proc/self/status VmLck > 0).
   bool memory_locked = false;
   std::size_t stack_prefaulted_bytes = 0;
+  // PM QoS CPU wake-up latency held for the run (CpuLatencyRequest), -1 = none held.
+  int cpu_dma_latency_us = -1;
   bool preempt_rt = false;
   std::string kernel_release;         // uname -r
   std::string kernel_version;         // uname -v
@@ -56,5 +58,31 @@ void prefault_stack(std::size_t bytes) noexcept;
 
 // VmLck of this process from /proc/self/status, in KiB; nullopt when it cannot be read.
 std::optional<std::uint64_t> locked_memory_kib();
+
+// Holds a PM QoS CPU wake-up latency request for its lifetime: while the file descriptor on
+// /dev/cpu_dma_latency stays open, the kernel keeps every CPU out of idle states whose exit
+// latency exceeds the request. Deep idle states add tens to hundreds of microseconds to a
+// timer wake-up; cyclictest makes the same request (0 us) unless told --laptop, so a loop
+// compared with it must make it too. Process-wide; setup path.
+class CpuLatencyRequest {
+ public:
+  CpuLatencyRequest() = default;
+  // latency_us < 0: no request. Never fails: a refusal leaves held() false with a warning.
+  static CpuLatencyRequest hold(int latency_us);
+  CpuLatencyRequest(CpuLatencyRequest&& other) noexcept;
+  CpuLatencyRequest& operator=(CpuLatencyRequest&& other) noexcept;
+  CpuLatencyRequest(const CpuLatencyRequest&) = delete;
+  CpuLatencyRequest& operator=(const CpuLatencyRequest&) = delete;
+  ~CpuLatencyRequest();
+
+  bool held() const noexcept { return fd_ >= 0; }
+  int latency_us() const noexcept { return held() ? latency_us_ : -1; }
+  const std::string& warning() const noexcept { return warning_; }
+
+ private:
+  int fd_ = -1;
+  int latency_us_ = -1;
+  std::string warning_;
+};
 
 }  // namespace trainer::loop
