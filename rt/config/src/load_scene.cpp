@@ -300,6 +300,27 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
     }
     config.objects.push_back(std::move(object));
   }
+  auto models = root.array_of_tables("model", 0, kMaxModels, "models");
+  for (TableReader& entry : models) {
+    SceneModelConfig model;
+    model.name = entry.required_name("name");
+    std::filesystem::path display;
+    const std::filesystem::path definition = entry.required_file("definition", true, &display);
+    entry.finish();
+    for (const SceneModelConfig& earlier : config.models) {
+      if (errors.ok() && earlier.name == model.name) {
+        entry.fail_value("name", ": expected unique model names");
+      }
+    }
+    if (!errors.ok() || definition.empty()) continue;
+    auto loaded = load_model_definition(display);
+    if (!loaded) {
+      device_error = std::move(loaded).error();
+      return config;
+    }
+    model.definition = std::move(*loaded);
+    config.models.push_back(std::move(model));
+  }
   root.finish();
   return config;
 }

@@ -387,7 +387,7 @@ const SceneErrorCase kSceneErrorCases[] = {
     {"end_run_wrong_type", "end_run_with_script = true", "end_run_with_script = \"yes\"",
      "trainee.end_run_with_script = \"yes\" has type string: expected boolean"},
     {"unknown_table", "[trainee]", "[traine]",
-     "unknown key 'traine' (known: scene, loop, memory, safety, trainee, instrument, object); "
+     "unknown key 'traine' (known: scene, loop, memory, safety, trainee, instrument, object, model); "
      "did you mean 'trainee'?"},
     {"unknown_device_instrument", "device_instrument = \"left\"", "device_instrument = \"center\"",
      "instrument[0].device_instrument = \"center\": expected the name of an instrument in device "

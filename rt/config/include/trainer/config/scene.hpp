@@ -14,12 +14,14 @@
 #include <vector>
 
 #include "trainer/config/device.hpp"
+#include "trainer/config/model.hpp"
 #include "trainer/core/expected.hpp"
 
 namespace trainer::config {
 
 inline constexpr std::size_t kMaxSceneInstruments = 4;
 inline constexpr std::size_t kMaxObjects = 16;
+inline constexpr std::size_t kMaxModels = 4;
 
 struct LoopConfig {                        // [loop]
   std::int64_t period_ns = 0;              // from period_us
@@ -76,6 +78,11 @@ struct ObjectConfig {  // [[object]]
   std::vector<std::size_t> touched_by;  // indices into SceneConfig::instruments, no repeats
 };
 
+struct SceneModelConfig {  // [[model]]: a model the scene uses, by its definition file
+  std::string name;          // unique within the scene
+  ModelDefinition definition;
+};
+
 struct SceneConfig {
   std::filesystem::path source_path;  // absolute, lexically normal path of the file loaded
   std::string name;                   // [scene] name
@@ -85,6 +92,7 @@ struct SceneConfig {
   TraineeConfig trainee;
   std::vector<SceneInstrumentConfig> instruments;  // 1..kMaxSceneInstruments
   std::vector<ObjectConfig> objects;               // 0..kMaxObjects
+  std::vector<SceneModelConfig> models;            // 0..kMaxModels
   DeviceConfig device;                             // loaded from [scene] device
 };
 
