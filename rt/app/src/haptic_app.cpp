@@ -127,6 +127,42 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
       state.touched_by_mask |= 1U << static_cast<unsigned>(instrument);
     }
   }
+  if (scene.models.size() > kMaxModels) {
+    return core::make_error(where + ": at most " + std::to_string(kMaxModels) +
+                            " models, the scene has " + std::to_string(scene.models.size()));
+  }
+  for (const config::SceneModelConfig& entry : scene.models) {
+    const config::ModelDefinition& definition = entry.definition;
+    const std::string image_name = definition.image_path.string();
+    auto image = model::load_model_image(definition.image_path, arena, model::ImageLimits{},
+                                         model::ModelKind::modal_shell);
+    if (!image) {
+      return core::make_error(where + ": model '" + entry.name + "': " + image.error().message +
+                              " (build it with: modelc build --scene " + where + ")");
+    }
+    const model::ImageMetadataV1& metadata = image->metadata();
+    model::ModalModelData data;
+    data.node_count = metadata.node_count;
+    data.mode_count = metadata.mode_count;
+    data.rest_positions = image->floats(model::SectionId::rest_positions);
+    data.mode_shapes = image->floats(model::SectionId::mode_shapes);
+    data.omega_squared = image->floats(model::SectionId::omega_squared);
+    data.modal_damping = image->floats(model::SectionId::modal_damping);
+    data.surface_nodes = image->u32s(model::SectionId::surface_nodes);
+    data.residual_compliance = image->floats(model::SectionId::residual_compliance);
+    model::ModalSettings settings;
+    settings.time_step_s = static_cast<float>(static_cast<double>(scene.loop.period_ns) * 1e-9);
+    settings.static_correction = metadata.static_correction != 0;
+    auto modal = model::ModalModel::create(data, arena, settings);
+    if (!modal) {
+      return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
+                              "): " + modal.error().message);
+    }
+    app->modal_models_[app->modal_model_count_++].emplace(std::move(*modal));
+    app->model_info_.push_back({entry.name, image_name, image->checksum(), image->bytes().size(),
+                                metadata.node_count, metadata.mode_count,
+                                metadata.static_correction != 0, metadata.time_step_s});
+  }
   return app;
 }
 
@@ -309,6 +345,9 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   }
 
   for (std::size_t i = 0; i < instruments_.size(); ++i) update_instrument(i, timing);
+  for (std::size_t m = 0; m < modal_model_count_; ++m) {
+    if (!modal_models_[m]->step().is_ok()) ++stats_.model_step_errors;
+  }
 
   const bool armed = safety_.armed();
   if (armed) ++stats_.armed_cycles;

@@ -52,6 +52,17 @@ nlohmann::json report_json(const RunResult& r) {
                                {"grip_nm", s.peak_joint_effort[4]}}},
     });
   }
+  nlohmann::json models = nlohmann::json::array();
+  for (const LoadedModelInfo& m : r.models) {
+    models.push_back({{"name", m.name},
+                      {"image", m.image_path},
+                      {"image_checksum", m.image_checksum},
+                      {"image_bytes", m.image_bytes},
+                      {"node_count", m.node_count},
+                      {"mode_count", m.mode_count},
+                      {"static_correction", m.static_correction},
+                      {"prepared_time_step_s", m.prepared_time_step_s}});
+  }
   nlohmann::json fault_counts = nlohmann::json::object();
   for (const auto& [name, count] : r.fault_counts) fault_counts[name] = count;
 
@@ -106,6 +117,8 @@ nlohmann::json report_json(const RunResult& r) {
         {"saturated_actuator_cycles", r.app.saturated_actuator_cycles}}},
       {"armed_cycles", r.app.armed_cycles},
       {"instruments", instruments},
+      {"models", models},
+      {"model_step_errors", r.app.model_step_errors},
       {"log_records_dropped", r.log_records_dropped},
   };
 }
@@ -137,6 +150,11 @@ std::string report_summary(const RunResult& r) {
     out << "  instrument '" << r.instrument_names[i] << "': peak force " << s.peak_force_n
         << " N, peak depth " << s.peak_depth_m * 1e3F << " mm, contact cycles "
         << s.contact_cycles << "\n";
+  }
+  for (const LoadedModelInfo& m : r.models) {
+    out << "  model '" << m.name << "': " << m.node_count << " nodes, " << m.mode_count
+        << " modes, static correction " << (m.static_correction ? "on" : "off") << ", image "
+        << m.image_bytes << " bytes\n";
   }
   out << "  safety: armed " << r.arm_count << " time(s), armed cycles " << r.app.armed_cycles;
   if (r.fault_counts.empty()) {

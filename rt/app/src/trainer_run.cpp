@@ -200,6 +200,7 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   result.loop = periodic.stats();
   result.app = haptic.stats();
+  result.models = haptic.models();
   const safety::SafetySupervisor& safety = haptic.safety();
   result.force_clamped_cycles = safety.clamped_cycles();
   result.force_slew_limited_cycles = safety.slew_limited_cycles();

@@ -4,10 +4,14 @@
 // locks and allocates nothing. It names only HAL interfaces, never a concrete backend.
 #pragma once
 
+#include <array>
 #include <atomic>
+#include <vector>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
+#include <string>
 
 #include "trainer/app/telemetry.hpp"
 #include "trainer/config/scene.hpp"
@@ -20,6 +24,8 @@
 #include "trainer/hal/joint_scale.hpp"
 #include "trainer/kinematics/trocar_kinematics.hpp"
 #include "trainer/loop/periodic_loop.hpp"
+#include "trainer/model/image_loader.hpp"
+#include "trainer/model/modal_model.hpp"
 #include "trainer/model/rigid_contact.hpp"
 #include "trainer/safety/safety_supervisor.hpp"
 
@@ -41,6 +47,18 @@ struct InstrumentStats {
   std::array<float, 5> peak_joint_effort{};
 };
 
+// A soft-tissue model the scene named, as loaded (for the report).
+struct LoadedModelInfo {
+  std::string name;
+  std::string image_path;
+  std::uint64_t image_checksum = 0;
+  std::size_t image_bytes = 0;
+  std::uint32_t node_count = 0;
+  std::uint32_t mode_count = 0;
+  bool static_correction = false;
+  double prepared_time_step_s = 0.0;
+};
+
 struct AppStats {
   std::uint64_t cycles = 0;
   std::uint64_t hal_read_errors = 0;
@@ -48,6 +66,7 @@ struct AppStats {
   std::uint64_t invalid_encoder_cycles = 0;
   std::uint64_t saturated_actuator_cycles = 0;
   std::uint64_t armed_cycles = 0;
+  std::uint64_t model_step_errors = 0;
   std::array<InstrumentStats, kMaxInstruments> instruments{};
 };
 
@@ -57,6 +76,7 @@ class HapticApp final : public loop::CycleTask {
   // before the device is declared lost and a fault latched.
   static constexpr std::uint32_t kToleratedErrorStreak = 3;
   static constexpr std::size_t kMaxObjects = 16;
+  static constexpr std::size_t kMaxModels = 4;
 
   // Setup path: checks the HAL offers the channels the scene needs and carves all cycle state
   // from `arena`. Errors name the scene/device item that does not fit.
@@ -75,6 +95,7 @@ class HapticApp final : public loop::CycleTask {
   const AppStats& stats() const noexcept { return stats_; }
   const safety::SafetySupervisor& safety() const noexcept { return safety_; }
   std::size_t instrument_count() const noexcept { return instruments_.size(); }
+  const std::vector<LoadedModelInfo>& models() const noexcept { return model_info_; }
 
   HapticApp(const HapticApp&) = delete;
   HapticApp& operator=(const HapticApp&) = delete;
@@ -121,6 +142,10 @@ class HapticApp final : public loop::CycleTask {
   std::span<hal::ActuatorCommand> commands_;
   std::span<hal::ActuatorStatus> actuator_status_;
   std::span<InstrumentTelemetry> instrument_out_;
+  // Soft-tissue models the scene names, their data in the arena; stepped every cycle.
+  std::array<std::optional<model::ModalModel>, kMaxModels> modal_models_{};
+  std::size_t modal_model_count_ = 0;
+  std::vector<LoadedModelInfo> model_info_;  // setup-time description, never touched in the cycle
 
   AppStats stats_{};
   std::uint32_t read_error_streak_ = 0;

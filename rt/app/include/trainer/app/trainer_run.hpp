@@ -65,6 +65,7 @@ struct RunResult {
   bool outputs_zeroed_at_exit = false;
   double wall_time_s = 0.0;
   std::vector<std::string> instrument_names;
+  std::vector<LoadedModelInfo> models;
 };
 
 core::Expected<RunResult> run_trainer(const RunOptions& options);

@@ -1,0 +1,173 @@
+// The reduced-modal duct at run time (NIRMS, Basdogan §V-C-1 and Appendix B; METHODS.md §1):
+// r decoupled modal oscillators integrated with average-acceleration Newmark, nodal forces
+// projected on the modes through the rows of the loaded nodes only, displacements read back
+// per node (haptic rate, O(r)) or for the whole mesh (graphics rate, O(n r)), optional static
+// correction by the residual compliance, and displacement-driven contact (the forces that
+// put contact nodes at imposed positions).
+//
+// Data: plain views of the model image (mode shapes, ω², damping, residual compliance), which
+// must outlive the model; every piece of state is carved from a core::Arena at create().
+// Everything after create() is noexcept, allocation-free and returns a core::Status. One
+// thread owns the model (the haptic thread): reconstruct() reads the live state, so another
+// thread wanting the field rebuilds it from published modal coordinates (DESIGN.md).
+//
+// Precision: mode shapes and residual compliance are float32 (the image) and the interface
+// takes and returns float; the modal state (x, v, a per mode), the Newmark constants and the
+// accumulated nodal forces are double, and every sum is accumulated in double. Measured at
+// Δt = 1 ms, 10 Hz..1.6 kHz: with a float state an undamped oscillator's amplitude drifts by
+// 7e-6..5e-5 in 1000 steps and 3e-5..5e-3 in 100,000 steps (one hour of use is 3.6 million
+// steps at 1 kHz); with the double state the runtime test measures 2.5e-8 after 100,000 steps.
+// The state is r values per array; the per-step work is the same count of operations.
+//
+// Units: SI. Mode shapes are M-orthonormal (kg^-1/2), modal coordinates kg^1/2·m, modal
+// damping α_i in 1/s (ẍ + α ẋ + ω² x = f), residual compliance m/N.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "trainer/core/arena.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/core/status.hpp"
+
+namespace trainer::model {
+
+using Vec3 = Eigen::Vector3f;
+
+// Views of the stored model; the lead maps the model image's sections onto it.
+struct ModalModelData {
+  std::uint32_t node_count = 0;
+  std::uint32_t mode_count = 0;                  // stored modes r
+  std::span<const float> rest_positions;         // 3n, m
+  std::span<const float> mode_shapes;            // 3n × r row-major: row node*3 + axis
+  std::span<const float> omega_squared;          // r, rad²/s², ascending, > 0
+  std::span<const float> modal_damping;          // r, α_i (1/s), ≥ 0
+  std::span<const std::uint32_t> surface_nodes;  // s nodes tools may touch (rows of R)
+  std::span<const float> residual_compliance;    // 3s × 3s row-major, m/N; may be empty
+};
+
+struct ModalSettings {
+  float time_step_s = 0.0F;
+  std::uint32_t active_modes = 0;  // first modes integrated, ≤ stored; 0 = all
+  bool static_correction = false;  // add R·F (needs residual_compliance)
+};
+
+struct ImposedDisplacement {
+  std::uint32_t node = 0;
+  Vec3 displacement_m = Vec3::Zero();  // from the rest position, at the end of the next step
+};
+
+class ModalModel {
+ public:
+  static constexpr std::size_t kMaxContacts = 8;      // simultaneous imposed displacements
+  static constexpr std::size_t kMaxLoadedNodes = 64;  // distinct nodes carrying a force
+
+  // Setup path: checks every size, value and index, carves the state from `arena`, and
+  // precomputes the Newmark constants per mode. `data`'s arrays must outlive the model.
+  static core::Expected<ModalModel> create(const ModalModelData& data, core::Arena& arena,
+                                           const ModalSettings& settings);
+
+  // ---- RT path: noexcept, no heap ----
+
+  // Adds `force_n` (N) on `node` for the next step(s). Forces accumulate per node and stay
+  // applied until clear_forces(). Refuses (nothing applied): unknown node, non-finite force
+  // (numeric_error), more than kMaxLoadedNodes distinct nodes, and — with static correction —
+  // a node outside surface_nodes (its residual compliance is unknown).
+  core::Status add_node_force(std::uint32_t node, const Vec3& force_n) noexcept;
+  void clear_forces() noexcept;
+
+  // One Newmark step of Δt with the applied forces acting at its end (F_{n+1}).
+  core::Status step() noexcept;
+
+  // Displacement (m) of `node` after the last step: Φ_node x, plus — with static correction
+  // and a surface node — Σ_l R_node,l F_l over the forces of the last step. Zero for an
+  // unknown node.
+  Vec3 displacement(std::uint32_t node) const noexcept;
+  Vec3 rest_position(std::uint32_t node) const noexcept;
+
+  // Forces (N, written to forces_out[k]) that make the displacement of targets[k].node after
+  // the next step() equal targets[k].displacement_m, given the forces already applied; they
+  // are added to the applied forces, the caller then calls step(). Solves the 3c × 3c system
+  // (c ≤ kMaxContacts) of the contact compliance of the next step
+  //   u_k(F) = Φ_k diag(1/k̂) (Φᵀ F + a0 x + a2 v + a) [+ R_kl F_l].
+  // Refuses (nothing applied): more than kMaxContacts targets, a repeated or unknown node,
+  // forces_out shorter than targets, non-finite targets, a non-surface node with static
+  // correction, fewer active modes than 3c without static correction, and a singular contact
+  // compliance (a fixed node).
+  core::Status solve_imposed(std::span<const ImposedDisplacement> targets,
+                             std::span<Vec3> forces_out) noexcept;
+
+  // Full displacement field (graphics rate): out[3i + axis] for node i, including the static
+  // correction when enabled. Refuses a span shorter than 3n.
+  core::Status reconstruct(std::span<float> out_3n) const noexcept;
+
+  void reset() noexcept;  // back to rest, forces cleared
+
+  std::uint32_t node_count() const noexcept { return node_count_; }
+  std::uint32_t active_mode_count() const noexcept { return active_modes_; }
+  float time_step_s() const noexcept { return time_step_s_; }
+  bool static_correction() const noexcept { return static_correction_; }
+  std::size_t applied_load_count() const noexcept { return pending_count_; }
+  std::span<const double> modal_displacement() const noexcept { return {x_.data(), active_modes_}; }
+  std::span<const double> modal_velocity() const noexcept { return {v_.data(), active_modes_}; }
+  std::span<const double> modal_acceleration() const noexcept { return {a_.data(), active_modes_}; }
+
+ private:
+  // One nodal load; plain arrays so the arena can hold it (trivially destructible). Kept in
+  // double: forces solved by solve_imposed() go into the dynamics unrounded, so an
+  // ill-conditioned contact compliance (few modes, no static correction) still reaches its
+  // targets; callers see float forces.
+  struct NodeLoad {
+    std::uint32_t node;
+    std::int32_t surface_index;  // row block in R, −1 if not a surface node
+    double force_n[3];
+  };
+
+  ModalModel() = default;
+
+  const float* shape_row(std::uint32_t node, int axis) const noexcept {
+    return mode_shapes_.data() +
+           (static_cast<std::size_t>(node) * 3 + static_cast<std::size_t>(axis)) * stored_modes_;
+  }
+  const float* compliance_block(std::int32_t row_surface,
+                                std::int32_t column_surface) const noexcept;
+  // Σ over `loads` of R_{surface,l} F_l (m); zero when static correction is off.
+  Eigen::Vector3d static_response(std::int32_t surface_index,
+                                  std::span<const NodeLoad> loads) const noexcept;
+  // Modal force Φᵀ F of the pending loads into modal_force_.
+  void project_pending_forces() noexcept;
+  std::size_t find_pending(std::uint32_t node) const noexcept;
+  core::Status add_force(std::uint32_t node, const Eigen::Vector3d& force_n) noexcept;
+
+  std::uint32_t node_count_ = 0;
+  std::uint32_t stored_modes_ = 0;
+  std::uint32_t active_modes_ = 0;
+  std::uint32_t surface_count_ = 0;
+  float time_step_s_ = 0.0F;
+  bool static_correction_ = false;
+  std::span<const float> rest_positions_;
+  std::span<const float> mode_shapes_;
+  std::span<const float> residual_compliance_;
+  std::span<const std::int32_t> surface_index_;  // per node: index in surface_nodes or −1
+
+  // Per mode (arena): Newmark constants and state.
+  std::span<double> omega_squared_;
+  std::span<double> a0_;             // (4 + 2 α Δt)/Δt²
+  std::span<double> a2_;             // 4/Δt + α
+  std::span<double> inverse_k_hat_;  // 1/(ω² + a0)
+  std::span<double> x_;
+  std::span<double> v_;
+  std::span<double> a_;
+  std::span<double> modal_force_;  // scratch: Φᵀ F
+  std::span<double> predicted_;    // scratch for solve_imposed
+
+  std::span<NodeLoad> pending_loads_;  // applied at the next step (kMaxLoadedNodes)
+  std::span<NodeLoad> stepped_loads_;  // the forces of the last step (for the static part)
+  std::size_t pending_count_ = 0;
+  std::size_t stepped_count_ = 0;
+};
+
+}  // namespace trainer::model

@@ -1,0 +1,431 @@
+// Runtime reduced-modal model: setup checks, Newmark per mode, contact solve.
+#include "trainer/model/modal_model.hpp"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <Eigen/Cholesky>
+
+namespace trainer::model {
+namespace {
+
+constexpr std::size_t kNotFound = static_cast<std::size_t>(-1);
+constexpr int kMaxContactRows = 3 * static_cast<int>(ModalModel::kMaxContacts);
+// A contact compliance whose smallest LDLᵀ pivot is below this fraction of the largest is
+// treated as singular: its data are float (relative error ~1e-7), so below ~1e-8 the solved
+// forces would be rounding noise (e.g. a fixed node, or nearly dependent shape rows).
+constexpr double kMinPivotRatio = 1e-8;
+
+using ContactMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                                    kMaxContactRows, kMaxContactRows>;
+using ContactVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxContactRows, 1>;
+
+bool all_finite(std::span<const float> values) noexcept {
+  for (const float value : values) {
+    if (!std::isfinite(value)) return false;
+  }
+  return true;
+}
+
+std::string size_error(const char* what, std::size_t actual, std::size_t expected,
+                       const std::string& expected_from) {
+  return std::string("modal model: ") + what + " has " + std::to_string(actual) +
+         " values, expected " + std::to_string(expected) + " (" + expected_from + ")";
+}
+
+template <class T>
+core::Expected<std::span<T>> carve(core::Arena& arena, std::size_t count, std::string_view what) {
+  auto span = arena.allocate_array<T>(count, what);
+  if (!span) {
+    return core::make_error("modal model: arena exhausted: " + span.error().message);
+  }
+  return span.value();
+}
+
+}  // namespace
+
+core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::Arena& arena,
+                                              const ModalSettings& settings) {
+  const std::size_t n = data.node_count;
+  const std::size_t r = data.mode_count;
+  if (n == 0 || r == 0) {
+    return core::make_error("modal model: node_count = " + std::to_string(n) +
+                            ", mode_count = " + std::to_string(r) + ": expected both ≥ 1");
+  }
+  const std::string sizes = std::to_string(n) + " nodes, " + std::to_string(r) + " modes";
+  if (data.rest_positions.size() != 3 * n) {
+    return core::make_error(size_error("rest_positions", data.rest_positions.size(), 3 * n,
+                                       "3 × node_count, " + sizes));
+  }
+  if (data.mode_shapes.size() != 3 * n * r) {
+    return core::make_error(size_error("mode_shapes", data.mode_shapes.size(), 3 * n * r,
+                                       "3 × node_count × mode_count, " + sizes));
+  }
+  if (data.omega_squared.size() != r) {
+    return core::make_error(
+        size_error("omega_squared", data.omega_squared.size(), r, "mode_count, " + sizes));
+  }
+  if (data.modal_damping.size() != r) {
+    return core::make_error(
+        size_error("modal_damping", data.modal_damping.size(), r, "mode_count, " + sizes));
+  }
+  if (!all_finite(data.rest_positions) || !all_finite(data.mode_shapes) ||
+      !all_finite(data.residual_compliance)) {
+    return core::make_error(
+        "modal model: rest_positions, mode_shapes or residual_compliance has a non-finite value");
+  }
+  for (std::size_t i = 0; i < r; ++i) {
+    if (!(data.omega_squared[i] > 0.0F) || !std::isfinite(data.omega_squared[i])) {
+      return core::make_error("modal model: omega_squared[" + std::to_string(i) +
+                              "] = " + std::to_string(data.omega_squared[i]) +
+                              " rad²/s², expected finite > 0");
+    }
+    if (!(data.modal_damping[i] >= 0.0F) || !std::isfinite(data.modal_damping[i])) {
+      return core::make_error("modal model: modal_damping[" + std::to_string(i) + "] = " +
+                              std::to_string(data.modal_damping[i]) + " 1/s, expected finite ≥ 0");
+    }
+  }
+  const std::size_t s = data.surface_nodes.size();
+  if (!data.residual_compliance.empty() && data.residual_compliance.size() != 9 * s * s) {
+    return core::make_error(
+        size_error("residual_compliance", data.residual_compliance.size(), 9 * s * s,
+                   "(3 × surface node count)², " + std::to_string(s) + " surface nodes; or empty"));
+  }
+  if (settings.static_correction && (s == 0 || data.residual_compliance.empty())) {
+    return core::make_error(
+        "modal model: static_correction is on but the model has no residual compliance (" +
+        std::to_string(s) + " surface nodes, " + std::to_string(data.residual_compliance.size()) +
+        " compliance values)");
+  }
+  if (!(settings.time_step_s > 0.0F) || !std::isfinite(settings.time_step_s)) {
+    return core::make_error("modal model: time_step_s = " + std::to_string(settings.time_step_s) +
+                            ", expected finite > 0");
+  }
+  if (settings.active_modes > r) {
+    return core::make_error("modal model: active_modes = " + std::to_string(settings.active_modes) +
+                            ", expected 0 (all) .. " + std::to_string(r) + " stored modes");
+  }
+
+  ModalModel model;
+  model.node_count_ = data.node_count;
+  model.stored_modes_ = data.mode_count;
+  model.active_modes_ = settings.active_modes == 0 ? data.mode_count : settings.active_modes;
+  model.surface_count_ = static_cast<std::uint32_t>(s);
+  model.time_step_s_ = settings.time_step_s;
+  model.static_correction_ = settings.static_correction;
+  model.rest_positions_ = data.rest_positions;
+  model.mode_shapes_ = data.mode_shapes;
+  model.residual_compliance_ = data.residual_compliance;
+
+  auto surface_index = carve<std::int32_t>(arena, n, "modal model surface index");
+  if (!surface_index) return std::move(surface_index).error();
+  for (auto& index : surface_index.value()) index = -1;
+  for (std::size_t k = 0; k < s; ++k) {
+    const std::uint32_t node = data.surface_nodes[k];
+    if (node >= n) {
+      return core::make_error("modal model: surface_nodes[" + std::to_string(k) +
+                              "] = " + std::to_string(node) + ", expected < node_count " +
+                              std::to_string(n));
+    }
+    if (surface_index.value()[node] >= 0) {
+      return core::make_error(
+          "modal model: surface node " + std::to_string(node) + " listed twice (surface_nodes[" +
+          std::to_string(surface_index.value()[node]) + "] and [" + std::to_string(k) + "])");
+    }
+    surface_index.value()[node] = static_cast<std::int32_t>(k);
+  }
+  model.surface_index_ = surface_index.value();
+
+  const std::size_t active = model.active_modes_;
+  std::span<double>* per_mode[] = {&model.omega_squared_,
+                                   &model.a0_,
+                                   &model.a2_,
+                                   &model.inverse_k_hat_,
+                                   &model.x_,
+                                   &model.v_,
+                                   &model.a_,
+                                   &model.modal_force_,
+                                   &model.predicted_};
+  for (std::span<double>* target : per_mode) {
+    auto span = carve<double>(arena, active, "modal model per-mode state");
+    if (!span) return std::move(span).error();
+    *target = span.value();
+  }
+  auto pending = carve<NodeLoad>(arena, kMaxLoadedNodes, "modal model pending loads");
+  if (!pending) return std::move(pending).error();
+  model.pending_loads_ = pending.value();
+  auto stepped = carve<NodeLoad>(arena, kMaxLoadedNodes, "modal model stepped loads");
+  if (!stepped) return std::move(stepped).error();
+  model.stepped_loads_ = stepped.value();
+
+  // Newmark constants per mode (METHODS.md §1, Appendix B corrected), in double.
+  const double dt = settings.time_step_s;
+  for (std::size_t i = 0; i < active; ++i) {
+    const double alpha = data.modal_damping[i];
+    model.omega_squared_[i] = data.omega_squared[i];
+    model.a0_[i] = (4.0 + 2.0 * alpha * dt) / (dt * dt);
+    model.a2_[i] = 4.0 / dt + alpha;
+    model.inverse_k_hat_[i] = 1.0 / (model.omega_squared_[i] + model.a0_[i]);
+  }
+  model.reset();
+  return model;
+}
+
+void ModalModel::reset() noexcept {
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    x_[i] = 0.0;
+    v_[i] = 0.0;
+    a_[i] = 0.0;
+  }
+  pending_count_ = 0;
+  stepped_count_ = 0;
+}
+
+std::size_t ModalModel::find_pending(std::uint32_t node) const noexcept {
+  for (std::size_t l = 0; l < pending_count_; ++l) {
+    if (pending_loads_[l].node == node) return l;
+  }
+  return kNotFound;
+}
+
+core::Status ModalModel::add_node_force(std::uint32_t node, const Vec3& force_n) noexcept {
+  return add_force(node, force_n.cast<double>());
+}
+
+core::Status ModalModel::add_force(std::uint32_t node, const Eigen::Vector3d& force_n) noexcept {
+  if (node >= node_count_) return {core::StatusCode::invalid_argument, "modal model: unknown node"};
+  if (!force_n.allFinite())
+    return {core::StatusCode::numeric_error, "modal model: non-finite force"};
+  const std::int32_t surface = surface_index_[node];
+  if (static_correction_ && surface < 0) {
+    return {core::StatusCode::invalid_argument,
+            "modal model: force on a non-surface node with static correction on"};
+  }
+  std::size_t slot = find_pending(node);
+  if (slot == kNotFound) {
+    if (pending_count_ == kMaxLoadedNodes) {
+      return {core::StatusCode::capacity_exceeded, "modal model: too many loaded nodes"};
+    }
+    slot = pending_count_++;
+    pending_loads_[slot] = NodeLoad{node, surface, {0.0, 0.0, 0.0}};
+  }
+  for (int axis = 0; axis < 3; ++axis) pending_loads_[slot].force_n[axis] += force_n[axis];
+  return core::Status::ok();
+}
+
+void ModalModel::clear_forces() noexcept {
+  pending_count_ = 0;
+}
+
+void ModalModel::project_pending_forces() noexcept {
+  const std::size_t r = active_modes_;
+  for (std::size_t i = 0; i < r; ++i) modal_force_[i] = 0.0;
+  for (std::size_t l = 0; l < pending_count_; ++l) {
+    const NodeLoad& load = pending_loads_[l];
+    for (int axis = 0; axis < 3; ++axis) {
+      const double force = load.force_n[axis];
+      if (force == 0.0) continue;
+      const float* row = shape_row(load.node, axis);
+      for (std::size_t i = 0; i < r; ++i) modal_force_[i] += static_cast<double>(row[i]) * force;
+    }
+  }
+}
+
+// Average-acceleration Newmark (γ = 1/2, β = 1/4) for ẍ + α ẋ + ω² x = f, per mode:
+//   x⁺ = x + Δt v + Δt²/4 (a + a⁺)  ⇒  a⁺ = 4/Δt² (x⁺ − x) − 4/Δt v − a
+//   v⁺ = v + Δt/2 (a + a⁺)          ⇒  v⁺ = 2/Δt (x⁺ − x) − v
+// Equilibrium at the end of the step, a⁺ + α v⁺ + ω² x⁺ = f⁺, with both substituted:
+//   (ω² + 4/Δt² + 2α/Δt) x⁺ = f⁺ + (4/Δt² + 2α/Δt) x + (4/Δt + α) v + a,
+// i.e. k̂ = ω² + a0 with a0 = (4 + 2αΔt)/Δt², a2 = 4/Δt + α, f̂ = f⁺ + a0 x + a2 v + a and
+// x⁺ = f̂/k̂ — the corrected Appendix B of METHODS.md §1 (the runtime test checks this
+// scheme's period elongation and energy conservation against the closed forms).
+core::Status ModalModel::step() noexcept {
+  project_pending_forces();
+  const double dt = time_step_s_;
+  const double four_over_dt_squared = 4.0 / (dt * dt);
+  const double four_over_dt = 4.0 / dt;
+  const double half_dt = 0.5 * dt;
+  bool finite = true;
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    const double effective_force = modal_force_[i] + a0_[i] * x_[i] + a2_[i] * v_[i] + a_[i];
+    const double next = effective_force * inverse_k_hat_[i];
+    const double next_acceleration =
+        four_over_dt_squared * (next - x_[i]) - four_over_dt * v_[i] - a_[i];
+    v_[i] += half_dt * (a_[i] + next_acceleration);
+    a_[i] = next_acceleration;
+    x_[i] = next;
+    finite = finite && std::isfinite(next) && std::isfinite(v_[i]);
+  }
+  if (!finite) {
+    reset();
+    return {core::StatusCode::numeric_error, "modal model: state became non-finite; reset to rest"};
+  }
+  for (std::size_t l = 0; l < pending_count_; ++l) stepped_loads_[l] = pending_loads_[l];
+  stepped_count_ = pending_count_;
+  return core::Status::ok();
+}
+
+const float* ModalModel::compliance_block(std::int32_t row_surface,
+                                          std::int32_t column_surface) const noexcept {
+  const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+  return residual_compliance_.data() + 3 * static_cast<std::size_t>(row_surface) * stride +
+         3 * static_cast<std::size_t>(column_surface);
+}
+
+Eigen::Vector3d ModalModel::static_response(std::int32_t surface_index,
+                                            std::span<const NodeLoad> loads) const noexcept {
+  Eigen::Vector3d response = Eigen::Vector3d::Zero();
+  if (!static_correction_ || surface_index < 0) return response;
+  const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+  for (const NodeLoad& load : loads) {
+    if (load.surface_index < 0) continue;
+    const float* block = compliance_block(surface_index, load.surface_index);
+    for (std::size_t row = 0; row < 3; ++row) {
+      const float* line = block + row * stride;
+      response[static_cast<Eigen::Index>(row)] += static_cast<double>(line[0]) * load.force_n[0] +
+                                                  static_cast<double>(line[1]) * load.force_n[1] +
+                                                  static_cast<double>(line[2]) * load.force_n[2];
+    }
+  }
+  return response;
+}
+
+Vec3 ModalModel::displacement(std::uint32_t node) const noexcept {
+  if (node >= node_count_) return Vec3::Zero();
+  Eigen::Vector3d result =
+      static_response(surface_index_[node], {stepped_loads_.data(), stepped_count_});
+  for (int axis = 0; axis < 3; ++axis) {
+    const float* row = shape_row(node, axis);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < active_modes_; ++i) sum += static_cast<double>(row[i]) * x_[i];
+    result[axis] += sum;
+  }
+  return result.cast<float>();
+}
+
+Vec3 ModalModel::rest_position(std::uint32_t node) const noexcept {
+  if (node >= node_count_) return Vec3::Zero();
+  const std::size_t base = 3 * static_cast<std::size_t>(node);
+  return {rest_positions_[base], rest_positions_[base + 1], rest_positions_[base + 2]};
+}
+
+core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targets,
+                                       std::span<Vec3> forces_out) noexcept {
+  const std::size_t c = targets.size();
+  if (c == 0) return core::Status::ok();
+  if (c > kMaxContacts) {
+    return {core::StatusCode::capacity_exceeded,
+            "modal model: more imposed displacements than kMaxContacts"};
+  }
+  if (forces_out.size() < c) {
+    return {core::StatusCode::invalid_argument, "modal model: forces_out shorter than targets"};
+  }
+  std::size_t new_nodes = 0;
+  for (std::size_t k = 0; k < c; ++k) {
+    const std::uint32_t node = targets[k].node;
+    if (node >= node_count_)
+      return {core::StatusCode::invalid_argument, "modal model: unknown contact node"};
+    if (!targets[k].displacement_m.allFinite()) {
+      return {core::StatusCode::numeric_error, "modal model: non-finite imposed displacement"};
+    }
+    if (static_correction_ && surface_index_[node] < 0) {
+      return {core::StatusCode::invalid_argument,
+              "modal model: contact on a non-surface node with static correction on"};
+    }
+    for (std::size_t l = 0; l < k; ++l) {
+      if (targets[l].node == node) {
+        return {core::StatusCode::invalid_argument, "modal model: contact node imposed twice"};
+      }
+    }
+    if (find_pending(node) == kNotFound) ++new_nodes;
+  }
+  if (pending_count_ + new_nodes > kMaxLoadedNodes) {
+    return {core::StatusCode::capacity_exceeded, "modal model: too many loaded nodes"};
+  }
+  if (!static_correction_ && active_modes_ < 3 * c) {
+    return {core::StatusCode::invalid_argument,
+            "modal model: fewer active modes than imposed components (enable static correction)"};
+  }
+
+  // Next-step modal displacement without the new forces: x⁺₀ = (Φᵀ F + a0 x + a2 v + a)/k̂.
+  project_pending_forces();
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    predicted_[i] = (modal_force_[i] + a0_[i] * x_[i] + a2_[i] * v_[i] + a_[i]) * inverse_k_hat_[i];
+  }
+  const std::span<const NodeLoad> pending{pending_loads_.data(), pending_count_};
+  const auto rows = static_cast<Eigen::Index>(3 * c);
+  ContactMatrix compliance(rows, rows);
+  ContactVector rhs(rows);
+  for (std::size_t k = 0; k < c; ++k) {
+    const std::uint32_t node_k = targets[k].node;
+    const Eigen::Vector3d static_part = static_response(surface_index_[node_k], pending);
+    for (int axis_k = 0; axis_k < 3; ++axis_k) {
+      const Eigen::Index row = static_cast<Eigen::Index>(3 * k) + axis_k;
+      const float* shape_k = shape_row(node_k, axis_k);
+      double free_response = 0.0;
+      for (std::size_t i = 0; i < active_modes_; ++i) {
+        free_response += static_cast<double>(shape_k[i]) * predicted_[i];
+      }
+      rhs[row] = static_cast<double>(targets[k].displacement_m[axis_k]) - free_response -
+                 static_part[axis_k];
+      // Upper triangle of Φ_K diag(1/k̂) Φ_Kᵀ + R_KK, mirrored below.
+      for (std::size_t l = k; l < c; ++l) {
+        const std::uint32_t node_l = targets[l].node;
+        for (int axis_l = (l == k ? axis_k : 0); axis_l < 3; ++axis_l) {
+          const Eigen::Index column = static_cast<Eigen::Index>(3 * l) + axis_l;
+          const float* shape_l = shape_row(node_l, axis_l);
+          double value = 0.0;
+          for (std::size_t i = 0; i < active_modes_; ++i) {
+            value += static_cast<double>(shape_k[i]) * static_cast<double>(shape_l[i]) *
+                     inverse_k_hat_[i];
+          }
+          if (static_correction_) {
+            const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+            value += static_cast<double>(
+                compliance_block(surface_index_[node_k],
+                                 surface_index_[node_l])[static_cast<std::size_t>(axis_k) * stride +
+                                                         static_cast<std::size_t>(axis_l)]);
+          }
+          compliance(row, column) = value;
+          compliance(column, row) = value;
+        }
+      }
+    }
+  }
+  const Eigen::LDLT<ContactMatrix> factorisation(compliance);
+  const ContactVector pivots = factorisation.vectorD();
+  if (factorisation.info() != Eigen::Success ||
+      !(pivots.minCoeff() > kMinPivotRatio * pivots.maxCoeff())) {
+    return {core::StatusCode::numeric_error,
+            "modal model: contact compliance singular (fixed node or dependent contacts)"};
+  }
+  const ContactVector forces = factorisation.solve(rhs);
+  constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+  for (Eigen::Index j = 0; j < rows; ++j) {
+    if (!std::isfinite(forces[j]) || std::abs(forces[j]) > kFloatMax) {
+      return {core::StatusCode::numeric_error, "modal model: non-finite contact force"};
+    }
+  }
+  for (std::size_t k = 0; k < c; ++k) {
+    const Eigen::Vector3d force = forces.segment<3>(static_cast<Eigen::Index>(3 * k));
+    forces_out[k] = force.cast<float>();
+    // Cannot fail: node, finiteness, surface membership and capacity were checked above.
+    (void)add_force(targets[k].node, force);
+  }
+  return core::Status::ok();
+}
+
+core::Status ModalModel::reconstruct(std::span<float> out_3n) const noexcept {
+  if (out_3n.size() < 3 * static_cast<std::size_t>(node_count_)) {
+    return {core::StatusCode::invalid_argument, "modal model: reconstruct output shorter than 3n"};
+  }
+  for (std::uint32_t node = 0; node < node_count_; ++node) {
+    const Vec3 u = displacement(node);
+    for (int axis = 0; axis < 3; ++axis)
+      out_3n[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(axis)] = u[axis];
+  }
+  return core::Status::ok();
+}
+
+}  // namespace trainer::model

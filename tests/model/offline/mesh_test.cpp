@@ -1,0 +1,245 @@
+// Mesh generators (tube, plate, cylindrical panel) and mesh validation: one test per
+// validation error, each message naming the element or node at fault.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <numbers>
+#include <set>
+
+#include "trainer/model_offline/mesh_generators.hpp"
+#include "trainer/model_offline/mesh_validation.hpp"
+#include "trainer/model_offline/shell_assembly.hpp"
+
+namespace trainer::model::offline {
+namespace {
+
+Eigen::Vector3d triangle_normal(const ShellMesh& mesh, Eigen::Index t) {
+  const Eigen::Vector3d p0 = mesh.nodes.row(mesh.triangles(t, 0)).transpose();
+  const Eigen::Vector3d p1 = mesh.nodes.row(mesh.triangles(t, 1)).transpose();
+  const Eigen::Vector3d p2 = mesh.nodes.row(mesh.triangles(t, 2)).transpose();
+  return (p1 - p0).cross(p2 - p0);
+}
+
+Eigen::Vector3d triangle_centroid(const ShellMesh& mesh, Eigen::Index t) {
+  return (mesh.nodes.row(mesh.triangles(t, 0)) + mesh.nodes.row(mesh.triangles(t, 1)) +
+          mesh.nodes.row(mesh.triangles(t, 2)))
+             .transpose() /
+         3.0;
+}
+
+TEST(MakeTube, GeometrySetsNormalsAndAlternatingDiagonals) {
+  const double radius = 0.004, length = 0.05;
+  const int rings = 11, segments = 16;
+  auto mesh = make_tube(radius, length, rings, segments);
+  ASSERT_TRUE(mesh) << mesh.error().message;
+  EXPECT_EQ(mesh->nodes.rows(), rings * segments);
+  EXPECT_EQ(mesh->triangles.rows(), 2 * (rings - 1) * segments);
+  for (Eigen::Index n = 0; n < mesh->nodes.rows(); ++n) {
+    EXPECT_NEAR(std::hypot(mesh->nodes(n, 1), mesh->nodes(n, 2)), radius, 1e-15);
+    EXPECT_GE(mesh->nodes(n, 0), 0.0);
+    EXPECT_LE(mesh->nodes(n, 0), length);
+  }
+  ASSERT_EQ(mesh->node_sets.at("clamped").size(), static_cast<std::size_t>(segments));
+  ASSERT_EQ(mesh->node_sets.at("free_end").size(), static_cast<std::size_t>(segments));
+  for (const int n : mesh->node_sets.at("clamped")) EXPECT_EQ(mesh->nodes(n, 0), 0.0);
+  for (const int n : mesh->node_sets.at("free_end")) EXPECT_NEAR(mesh->nodes(n, 0), length, 1e-15);
+  EXPECT_EQ(mesh->node_sets.at("all").size(), static_cast<std::size_t>(rings * segments));
+  EXPECT_EQ(mesh->triangle_sets.at("wall").size(),
+            static_cast<std::size_t>(mesh->triangles.rows()));
+
+  // Outward normals; diagonals alternate: half the quads use each direction. A diagonal joins
+  // two nodes on different rings and different segments; classify by the sign of the
+  // segment step when going up one ring.
+  int rising = 0, falling = 0;
+  std::set<std::pair<int, int>> diagonals;
+  for (Eigen::Index t = 0; t < mesh->triangles.rows(); ++t) {
+    const Eigen::Vector3d centroid = triangle_centroid(*mesh, t);
+    const Eigen::Vector3d radial(0.0, centroid.y(), centroid.z());
+    EXPECT_GT(triangle_normal(*mesh, t).dot(radial), 0.0) << "triangle " << t;
+    for (int a = 0; a < 3; ++a) {
+      const int p = mesh->triangles(t, a), q = mesh->triangles(t, (a + 1) % 3);
+      const int ring_p = p / segments, ring_q = q / segments;
+      if (ring_p == ring_q || p % segments == q % segments) continue;
+      diagonals.insert({std::min(p, q), std::max(p, q)});
+    }
+  }
+  for (const auto& [p, q] : diagonals) {
+    const int step = (q % segments - p % segments + segments) % segments;
+    (step == 1 ? rising : falling) += 1;
+  }
+  EXPECT_EQ(rising + falling, (rings - 1) * segments);
+  EXPECT_EQ(rising, falling);
+  EXPECT_TRUE(validate_shell_mesh(*mesh));
+}
+
+TEST(MakeTube, HashFollowsParametersAndBadParametersAreRefused) {
+  auto a = make_tube(0.004, 0.05, 11, 16);
+  auto b = make_tube(0.004, 0.05, 11, 16);
+  auto c = make_tube(0.004, 0.05, 11, 17);
+  auto d = make_tube(0.0040000000001, 0.05, 11, 16);
+  ASSERT_TRUE(a && b && c && d);
+  EXPECT_EQ(a->source_hash, b->source_hash);
+  EXPECT_NE(a->source_hash, c->source_hash);
+  EXPECT_NE(a->source_hash, d->source_hash);
+  EXPECT_NE(a->source_hash, 0u);
+  for (auto bad : {make_tube(0.0, 1.0, 3, 8), make_tube(1.0, -1.0, 3, 8), make_tube(1.0, 1.0, 1, 8),
+                   make_tube(1.0, 1.0, 3, 2)}) {
+    ASSERT_FALSE(bad);
+    EXPECT_NE(bad.error().message.find("make_tube"), std::string::npos);
+  }
+}
+
+TEST(MakeRectanglePlate, EdgesSetsAndPatterns) {
+  for (const TrianglePattern pattern :
+       {TrianglePattern::alternating, TrianglePattern::right, TrianglePattern::left}) {
+    auto mesh = make_rectangle_plate(2.0, 1.0, 4, 3, pattern);
+    ASSERT_TRUE(mesh);
+    EXPECT_EQ(mesh->nodes.rows(), 5 * 4);
+    EXPECT_EQ(mesh->triangles.rows(), 2 * 4 * 3);
+    for (const int n : mesh->node_sets.at("x0")) EXPECT_EQ(mesh->nodes(n, 0), 0.0);
+    for (const int n : mesh->node_sets.at("x1")) EXPECT_EQ(mesh->nodes(n, 0), 2.0);
+    for (const int n : mesh->node_sets.at("y0")) EXPECT_EQ(mesh->nodes(n, 1), 0.0);
+    for (const int n : mesh->node_sets.at("y1")) EXPECT_EQ(mesh->nodes(n, 1), 1.0);
+    EXPECT_EQ(mesh->node_sets.at("x0").size(), 4u);
+    EXPECT_EQ(mesh->node_sets.at("y1").size(), 5u);
+    double area = 0.0;
+    for (Eigen::Index t = 0; t < mesh->triangles.rows(); ++t) {
+      const Eigen::Vector3d normal = triangle_normal(*mesh, t);
+      EXPECT_GT(normal.z(), 0.0);
+      area += 0.5 * normal.norm();
+    }
+    EXPECT_NEAR(area, 2.0, 1e-14);
+    EXPECT_TRUE(validate_shell_mesh(*mesh));
+  }
+  // Node 0's diagonal depends on the pattern: "right" joins (0,0)–(1,1), "left" does not.
+  auto right = make_rectangle_plate(1.0, 1.0, 1, 1, TrianglePattern::right);
+  auto left = make_rectangle_plate(1.0, 1.0, 1, 1, TrianglePattern::left);
+  ASSERT_TRUE(right && left);
+  auto uses_edge = [](const ShellMesh& mesh, int p, int q) {
+    for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
+      for (int a = 0; a < 3; ++a) {
+        const int u = mesh.triangles(t, a), v = mesh.triangles(t, (a + 1) % 3);
+        if ((u == p && v == q) || (u == q && v == p)) return true;
+      }
+    }
+    return false;
+  };
+  EXPECT_TRUE(uses_edge(*right, 0, 3));
+  EXPECT_FALSE(uses_edge(*left, 0, 3));
+  EXPECT_TRUE(uses_edge(*left, 1, 2));
+  EXPECT_FALSE(make_rectangle_plate(1.0, 1.0, 0, 1, TrianglePattern::right));
+}
+
+TEST(MakeCylindricalPanel, ArcSetsAndOutwardNormals) {
+  const double radius = 25.0, angle = 40.0 * std::numbers::pi / 180.0;
+  auto mesh = make_cylindrical_panel(radius, 25.0, 0.0, angle, 6, 4, TrianglePattern::alternating);
+  ASSERT_TRUE(mesh) << mesh.error().message;
+  for (const int n : mesh->node_sets.at("arc0")) {
+    EXPECT_NEAR(mesh->nodes(n, 1), 0.0, 1e-12);
+    EXPECT_NEAR(mesh->nodes(n, 2), radius, 1e-12);
+  }
+  for (const int n : mesh->node_sets.at("arc1")) {
+    EXPECT_NEAR(mesh->nodes(n, 1), radius * std::sin(angle), 1e-12);
+  }
+  for (const int n : mesh->node_sets.at("x1")) EXPECT_NEAR(mesh->nodes(n, 0), 25.0, 1e-12);
+  for (Eigen::Index t = 0; t < mesh->triangles.rows(); ++t) {
+    const Eigen::Vector3d c = triangle_centroid(*mesh, t);
+    EXPECT_GT(triangle_normal(*mesh, t).dot(Eigen::Vector3d(0.0, c.y(), c.z())), 0.0);
+  }
+  EXPECT_FALSE(make_cylindrical_panel(1.0, 1.0, 0.5, 0.5, 2, 2, TrianglePattern::right));
+}
+
+// A valid 2 × 1 strip of 4 triangles to break one way at a time.
+ShellMesh strip() {
+  auto mesh = make_rectangle_plate(2.0, 1.0, 2, 1, TrianglePattern::right);
+  return *mesh;
+}
+
+void expect_invalid(const ShellMesh& mesh, const std::string& expected) {
+  auto result = validate_shell_mesh(mesh);
+  ASSERT_FALSE(result) << "expected: " << expected;
+  EXPECT_NE(result.error().message.find(expected), std::string::npos) << result.error().message;
+}
+
+TEST(MeshValidation, EachProblemIsNamed) {
+  ASSERT_TRUE(validate_shell_mesh(strip()));
+  {
+    ShellMesh mesh = strip();
+    mesh.triangles(2, 1) = 17;
+    expect_invalid(mesh, "triangle 2: node index 17 out of range 0..5");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.triangles(1, 2) = mesh.triangles(1, 0);
+    expect_invalid(mesh, "triangle 1: repeats a node");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.triangles.row(3) << mesh.triangles(0, 2), mesh.triangles(0, 0), mesh.triangles(0, 1);
+    // Triangle 3 now duplicates triangle 0 (nodes rotated), and node 5 is left unused.
+    expect_invalid(mesh, "triangle 3: duplicate of triangle 0 (same nodes)");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.nodes.row(4) = mesh.nodes.row(3);  // node 4 collapses onto node 3
+    expect_invalid(mesh, "node 4: duplicate of node 3");
+  }
+  {
+    ShellMesh mesh = strip();
+    // Triangle 2 is (1, 2, 5): put node 5 on the midpoint of side 1–2.
+    ASSERT_EQ(mesh.triangles.row(2), Eigen::RowVector3i(1, 2, 5));
+    mesh.nodes.row(5) = 0.5 * (mesh.nodes.row(1) + mesh.nodes.row(2));
+    expect_invalid(mesh, "triangle 2 (nodes 1, 2, 5): degenerate");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.nodes.conservativeResize(7, 3);
+    mesh.nodes.row(6) << 9.0, 9.0, 9.0;
+    expect_invalid(mesh, "node 6: used by no triangle");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.node_sets["x0"].push_back(40);
+    expect_invalid(mesh, "node set 'x0' lists node 40, outside 0..5");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.triangle_sets["plate"].push_back(-1);
+    expect_invalid(mesh, "triangle set 'plate' lists triangle -1");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.node_sets["empty"] = {};
+    expect_invalid(mesh, "node set 'empty' is empty");
+  }
+  {
+    ShellMesh mesh = strip();
+    mesh.nodes(2, 1) = std::nan("");
+    expect_invalid(mesh, "node 2: non-finite coordinates");
+  }
+  expect_invalid(ShellMesh{}, "0 nodes and 0 triangles");
+}
+
+TEST(MeshValidation, AssemblyRefusesAnInvalidMesh) {
+  ShellMesh mesh = strip();
+  mesh.nodes.row(4) = mesh.nodes.row(3);
+  auto shell = assemble_shell(mesh, ShellMaterial{1e6, 0.3, 1e-3, 1000.0}, BendingElement::dkt,
+                              {{"x0", {kUx, kUy, kUz, kRx, kRy, kRz}}});
+  ASSERT_FALSE(shell);
+  EXPECT_NE(shell.error().message.find("invalid shell mesh"), std::string::npos);
+}
+
+TEST(MeshValidation, CoincidenceIsRelativeToTheMeshSize) {
+  // No absolute tolerance: a 1 µm plate is valid, but nodes 1e-20 m apart are duplicates.
+  auto mesh = make_rectangle_plate(1e-6, 1e-6, 2, 2, TrianglePattern::alternating);
+  ASSERT_TRUE(mesh);
+  EXPECT_TRUE(validate_shell_mesh(*mesh));
+  ShellMesh close = *mesh;
+  close.nodes.row(4) = close.nodes.row(3) + Eigen::RowVector3d(1e-20, 0.0, 0.0);
+  expect_invalid(close, "node 4: duplicate of node 3");
+}
+
+}  // namespace
+}  // namespace trainer::model::offline
