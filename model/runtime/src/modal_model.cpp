@@ -152,6 +152,21 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
     if (!span) return std::move(span).error();
     *target = span.value();
   }
+  if (model.static_correction_) {
+    const std::size_t inactive = model.stored_modes_ - active;
+    auto inverse = carve<double>(arena, inactive, "modal model inactive-mode flexibility");
+    if (!inverse) return std::move(inverse).error();
+    model.inactive_inverse_omega_squared_ = inverse.value();
+    for (std::size_t j = 0; j < inactive; ++j) {
+      const auto omega_squared = static_cast<double>(data.omega_squared[active + j]);
+      if (!(omega_squared > 0.0)) {
+        return core::make_error("modal model: omega_squared[" + std::to_string(active + j) +
+                                "] = " + std::to_string(omega_squared) +
+                                ", expected > 0 (a free rigid-body mode has no static flexibility)");
+      }
+      model.inactive_inverse_omega_squared_[j] = 1.0 / omega_squared;
+    }
+  }
   auto pending = carve<NodeLoad>(arena, kMaxLoadedNodes, "modal model pending loads");
   if (!pending) return std::move(pending).error();
   model.pending_loads_ = pending.value();
@@ -273,19 +288,32 @@ const float* ModalModel::compliance_block(std::int32_t row_surface,
          3 * static_cast<std::size_t>(column_surface);
 }
 
-Eigen::Vector3d ModalModel::static_response(std::int32_t surface_index,
+double ModalModel::residual_entry(std::uint32_t node_k, int axis_k, std::uint32_t node_l,
+                                  int axis_l) const noexcept {
+  const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+  double value = static_cast<double>(
+      compliance_block(surface_index_[node_k], surface_index_[node_l])
+          [static_cast<std::size_t>(axis_k) * stride + static_cast<std::size_t>(axis_l)]);
+  const float* shape_k = shape_row(node_k, axis_k);
+  const float* shape_l = shape_row(node_l, axis_l);
+  for (std::size_t j = 0; j < inactive_inverse_omega_squared_.size(); ++j) {
+    const std::size_t i = active_modes_ + j;
+    value += static_cast<double>(shape_k[i]) * static_cast<double>(shape_l[i]) *
+             inactive_inverse_omega_squared_[j];
+  }
+  return value;
+}
+
+Eigen::Vector3d ModalModel::static_response(std::uint32_t node,
                                             std::span<const NodeLoad> loads) const noexcept {
   Eigen::Vector3d response = Eigen::Vector3d::Zero();
-  if (!static_correction_ || surface_index < 0) return response;
-  const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+  if (!static_correction_ || surface_index_[node] < 0) return response;
   for (const NodeLoad& load : loads) {
     if (load.surface_index < 0) continue;
-    const float* block = compliance_block(surface_index, load.surface_index);
-    for (std::size_t row = 0; row < 3; ++row) {
-      const float* line = block + row * stride;
-      response[static_cast<Eigen::Index>(row)] += static_cast<double>(line[0]) * load.force_n[0] +
-                                                  static_cast<double>(line[1]) * load.force_n[1] +
-                                                  static_cast<double>(line[2]) * load.force_n[2];
+    for (int row = 0; row < 3; ++row) {
+      for (int column = 0; column < 3; ++column) {
+        response[row] += residual_entry(node, row, load.node, column) * load.force_n[column];
+      }
     }
   }
   return response;
@@ -294,7 +322,7 @@ Eigen::Vector3d ModalModel::static_response(std::int32_t surface_index,
 Vec3 ModalModel::displacement(std::uint32_t node) const noexcept {
   if (node >= node_count_) return Vec3::Zero();
   Eigen::Vector3d result =
-      static_response(surface_index_[node], {stepped_loads_.data(), stepped_count_});
+      static_response(node, {stepped_loads_.data(), stepped_count_});
   for (int axis = 0; axis < 3; ++axis) {
     const float* row = shape_row(node, axis);
     double sum = 0.0;
@@ -359,7 +387,7 @@ core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targ
   ContactVector rhs(rows);
   for (std::size_t k = 0; k < c; ++k) {
     const std::uint32_t node_k = targets[k].node;
-    const Eigen::Vector3d static_part = static_response(surface_index_[node_k], pending);
+    const Eigen::Vector3d static_part = static_response(node_k, pending);
     for (int axis_k = 0; axis_k < 3; ++axis_k) {
       const Eigen::Index row = static_cast<Eigen::Index>(3 * k) + axis_k;
       const float* shape_k = shape_row(node_k, axis_k);
@@ -380,13 +408,7 @@ core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targ
             value += static_cast<double>(shape_k[i]) * static_cast<double>(shape_l[i]) *
                      inverse_k_hat_[i];
           }
-          if (static_correction_) {
-            const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
-            value += static_cast<double>(
-                compliance_block(surface_index_[node_k],
-                                 surface_index_[node_l])[static_cast<std::size_t>(axis_k) * stride +
-                                                         static_cast<std::size_t>(axis_l)]);
-          }
+          if (static_correction_) value += residual_entry(node_k, axis_k, node_l, axis_l);
           compliance(row, column) = value;
           compliance(column, row) = value;
         }

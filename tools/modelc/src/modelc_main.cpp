@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "build_command.hpp"
 #include "static_command.hpp"
 
 int main(int argc, char** argv) {
@@ -12,6 +13,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   trainer::tools::modelc::add_static_command(app, exit_code);
+  trainer::tools::modelc::add_build_command(app, exit_code);
+  trainer::tools::modelc::add_accuracy_command(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

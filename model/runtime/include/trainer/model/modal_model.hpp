@@ -135,8 +135,13 @@ class ModalModel {
   const float* compliance_block(std::int32_t row_surface,
                                 std::int32_t column_surface) const noexcept;
   // Σ over `loads` of R_{surface,l} F_l (m); zero when static correction is off.
-  Eigen::Vector3d static_response(std::int32_t surface_index,
-                                  std::span<const NodeLoad> loads) const noexcept;
+  // Static response at `node` to `loads` through the residual compliance of the ACTIVE basis:
+  // the stored R (the residual of all stored modes) plus the static part of the stored modes
+  // left inactive, Σ_{i ≥ active} φ_i φ_iᵀ / ω_i². Without the second term, running fewer
+  // modes than stored would silently lose their static contribution.
+  Eigen::Vector3d static_response(std::uint32_t node, std::span<const NodeLoad> loads) const noexcept;
+  double residual_entry(std::uint32_t node_k, int axis_k, std::uint32_t node_l,
+                        int axis_l) const noexcept;
   // Modal force Φᵀ F of the pending loads into modal_force_.
   void project_pending_forces() noexcept;
   std::size_t find_pending(std::uint32_t node) const noexcept;
@@ -155,6 +160,7 @@ class ModalModel {
 
   // Per mode (arena): Newmark constants and state.
   std::span<double> omega_squared_;
+  std::span<double> inactive_inverse_omega_squared_;  // 1/ω_i² for stored modes i ≥ active
   std::span<double> a0_;             // (4 + 2 α Δt)/Δt²
   std::span<double> a2_;             // 4/Δt + α
   std::span<double> inverse_k_hat_;  // 1/(ω² + a0)

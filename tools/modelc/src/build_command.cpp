@@ -1,0 +1,228 @@
+#include "build_command.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "model_spec.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/model_offline/modal_accuracy.hpp"
+
+namespace trainer::tools::modelc {
+
+namespace {
+
+namespace offline = model::offline;
+
+template <class T>
+T value_or_throw(core::Expected<T> expected) {
+  if (!expected) throw std::runtime_error(expected.error().message);
+  return std::move(expected).value();
+}
+
+std::string fixed(double value, int decimals) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*f", decimals, value);
+  return buffer;
+}
+
+void write_json(const std::string& path, const nlohmann::json& json) {
+  if (path.empty()) return;
+  std::ofstream out(path);
+  out << json.dump(2) << "\n";
+  if (!out) throw std::runtime_error("cannot write report '" + path + "'");
+  std::cout << "report: " << path << "\n";
+}
+
+struct BuildOptions {
+  std::string scene_path;
+  std::string only;
+  std::string report_path;
+};
+
+void run_build(const BuildOptions& options) {
+  config::LoadOptions load;
+  load.require_script_file = false;  // building models does not need the trainee's recording
+  const config::SceneConfig scene = value_or_throw(config::load_scene(options.scene_path, load));
+  nlohmann::json report = {{"scene", options.scene_path}, {"models", nlohmann::json::array()}};
+  if (scene.models.empty()) std::cout << "modelc: scene '" << scene.name << "' names no models\n";
+  for (const config::SceneModelConfig& entry : scene.models) {
+    if (!options.only.empty() && entry.name != options.only) continue;
+    const config::ModelDefinition& definition = entry.definition;
+    const offline::ModalBuildSpec spec = value_or_throw(modal_spec_from(definition));
+    const offline::ModalBuildResult built = value_or_throw(offline::build_modal_model(spec));
+    std::filesystem::create_directories(definition.image_path.parent_path());
+    if (auto written = offline::write_modal_image(spec, built, definition.image_path); !written) {
+      throw std::runtime_error(written.error().message);
+    }
+    const auto image_bytes = std::filesystem::file_size(definition.image_path);
+    const double omega_1 = std::sqrt(built.basis.omega_squared(0));
+    const double omega_r = std::sqrt(built.basis.omega_squared(built.basis.mode_count() - 1));
+    std::cout << "model '" << entry.name << "': " << spec.mesh.nodes.rows() << " nodes, "
+              << spec.mesh.triangles.rows() << " triangles, " << built.shell.dofs.free_count()
+              << " free dofs, " << built.basis.mode_count() << " modes ("
+              << offline::to_string(built.basis.method) << "), f1 "
+              << fixed(omega_1 / (2.0 * M_PI), 2) << " Hz .. f" << built.basis.mode_count() << " "
+              << fixed(omega_r / (2.0 * M_PI), 1) << " Hz\n"
+              << "  static error of " << built.basis.mode_count()
+              << " modes without correction: max " << fixed(100.0 * built.truncation.max_local_relative, 2)
+              << " %, mean " << fixed(100.0 * built.truncation.mean_local_relative, 2) << " %"
+              << (spec.static_correction ? " (static correction stored: exact at surface nodes)" : "")
+              << "\n  built in " << fixed(built.timings.total_s, 3) << " s (assembly "
+              << fixed(built.timings.assembly_s, 3) << ", modes " << fixed(built.timings.modes_s, 3)
+              << ", residual " << fixed(built.timings.residual_s, 3) << ", error estimate "
+              << fixed(built.timings.error_estimate_s, 3) << ")\n  image "
+              << definition.image_path.string() << " (" << image_bytes << " bytes)\n";
+    report["models"].push_back({
+        {"name", entry.name},
+        {"definition", definition.source_path.string()},
+        {"image", definition.image_path.string()},
+        {"image_bytes", image_bytes},
+        {"node_count", spec.mesh.nodes.rows()},
+        {"triangle_count", spec.mesh.triangles.rows()},
+        {"free_dofs", built.shell.dofs.free_count()},
+        {"mode_count", built.basis.mode_count()},
+        {"modal_method", offline::to_string(built.basis.method)},
+        {"frequency_first_hz", omega_1 / (2.0 * M_PI)},
+        {"frequency_last_hz", omega_r / (2.0 * M_PI)},
+        {"rayleigh_mass_per_s", built.rayleigh.mass_proportional_per_s},
+        {"rayleigh_stiffness_s", built.rayleigh.stiffness_proportional_s},
+        {"truncation_error_max", built.truncation.max_local_relative},
+        {"truncation_error_mean", built.truncation.mean_local_relative},
+        {"static_correction", spec.static_correction},
+        {"surface_node_count", built.surface_nodes.size()},
+        {"timings_s",
+         {{"assembly", built.timings.assembly_s},
+          {"modes", built.timings.modes_s},
+          {"residual", built.timings.residual_s},
+          {"error_estimate", built.timings.error_estimate_s},
+          {"total", built.timings.total_s}}},
+    });
+  }
+  write_json(options.report_path, report);
+}
+
+struct AccuracyOptions {
+  std::string model_path;
+  std::vector<int> modes{10, 20, 40};
+  double force_n = 0.05;
+  std::string report_path;
+};
+
+void run_accuracy(const AccuracyOptions& options) {
+  const config::ModelDefinition definition =
+      value_or_throw(config::load_model_definition(options.model_path));
+  offline::ModalBuildSpec spec = value_or_throw(modal_spec_from(definition));
+  spec.static_correction = true;  // measure both: the residual is needed for "with"
+  // One build per r, as an image of that size would be (its residual belongs to its r modes).
+  std::vector<offline::ModalBuildResult> builds;
+  for (int r : options.modes) {
+    spec.mode_count = r;
+    builds.push_back(value_or_throw(offline::build_modal_model(spec)));
+  }
+  const offline::ModalBuildResult& built = builds.front();
+
+  // Probe points on the model's surface: the node nearest each point gets a radial push.
+  const Eigen::Vector3d lower = spec.mesh.nodes.colwise().minCoeff();
+  const Eigen::Vector3d upper = spec.mesh.nodes.colwise().maxCoeff();
+  const Eigen::Vector3d centre = 0.5 * (lower + upper);
+  const Eigen::Vector3d extent = upper - lower;
+  std::vector<offline::AccuracyScenario> scenarios = {
+      {"press at mid-length", {centre.x(), centre.y(), upper.z()}, {0.0, 0.0, -options.force_n}},
+      {"press near the free end",
+       {lower.x() + 0.9 * extent.x(), centre.y(), upper.z()},
+       {0.0, 0.0, -options.force_n}},
+  };
+  nlohmann::json report = {{"model", options.model_path},
+                           {"node_count", spec.mesh.nodes.rows()},
+                           {"free_dofs", built.shell.dofs.free_count()},
+                           {"time_step_s", spec.time_step_s},
+                           {"damping_ratio", spec.damping_ratio},
+                           {"force_n", options.force_n},
+                           {"points", nlohmann::json::array()}};
+  std::cout << "modal model vs DNIOS (full Newmark, " << built.shell.dofs.free_count()
+            << " dofs), " << spec.mesh.nodes.rows() << " nodes, dt " << spec.time_step_s
+            << " s, force " << options.force_n << " N ramped over 20 ms, 0.3 s\n";
+  std::cout << "scenario                  r  static  local err  field err  modal ns  DNIOS ns  speedup\n";
+  for (const offline::AccuracyScenario& scenario : scenarios) {
+    std::vector<offline::AccuracyPoint> points;
+    for (std::size_t b = 0; b < builds.size(); ++b) {
+      const int r = options.modes[b];
+      for (const auto& point : value_or_throw(offline::measure_modal_accuracy(
+               spec, builds[b], std::span<const int>(&r, 1), scenario))) {
+        points.push_back(point);
+      }
+    }
+    for (const offline::AccuracyPoint& p : points) {
+      char line[200];
+      std::snprintf(line, sizeof line, "%-24s %3d  %-6s  %9s  %9s  %8.0f  %8.0f  %7.1f\n",
+                    p.scenario.c_str(), p.modes, p.static_correction ? "on" : "off",
+                    (fixed(100.0 * p.local_error, 2) + "%").c_str(),
+                    (fixed(100.0 * p.field_error, 2) + "%").c_str(), p.modal_step_ns,
+                    p.reference_step_ns, p.speedup);
+      std::cout << line;
+      report["points"].push_back({{"scenario", p.scenario},
+                                  {"load_node", p.load_node},
+                                  {"modes", p.modes},
+                                  {"static_correction", p.static_correction},
+                                  {"local_error", p.local_error},
+                                  {"final_local_error", p.final_local_error},
+                                  {"field_error", p.field_error},
+                                  {"modal_step_ns", p.modal_step_ns},
+                                  {"reference_step_ns", p.reference_step_ns},
+                                  {"speedup", p.speedup}});
+    }
+  }
+  write_json(options.report_path, report);
+}
+
+}  // namespace
+
+void add_build_command(CLI::App& app, int& exit_code) {
+  auto options = std::make_shared<BuildOptions>();
+  CLI::App* command = app.add_subcommand(
+      "build", "Build the image of every model a scene names ([[model]] entries), each written "
+               "where its definition file's [model] image says");
+  command->add_option("--scene", options->scene_path, "scene file (TOML)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--only", options->only, "build only the model with this name");
+  command->add_option("--report", options->report_path, "write a JSON report of the build");
+  command->callback([options, &exit_code] {
+    run_build(*options);
+    exit_code = 0;
+  });
+}
+
+void add_accuracy_command(CLI::App& app, int& exit_code) {
+  auto options = std::make_shared<AccuracyOptions>();
+  CLI::App* command = app.add_subcommand(
+      "accuracy",
+      "Error and per-step cost of the reduced-modal model (float32 runtime, r modes, static "
+      "correction off/on) against direct Newmark integration of the full system (DNIOS), for "
+      "radial pushes at mid-length and near the free end");
+  command->add_option("--model", options->model_path, "model definition file (TOML)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--modes", options->modes, "mode counts to compare (e.g. 10,20,40)")
+      ->delimiter(',')
+      ->capture_default_str();
+  command->add_option("--force", options->force_n, "peak force of the push (N)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command->add_option("--report", options->report_path, "write the table as JSON");
+  command->callback([options, &exit_code] {
+    run_accuracy(*options);
+    exit_code = 0;
+  });
+}
+
+}  // namespace trainer::tools::modelc
