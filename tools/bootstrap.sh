@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The README's two entry points.
-#   tools/bootstrap.sh run   install dependencies, build (release), run the main job:
-#                            the default scene on the simulated device, report in out/
+#   tools/bootstrap.sh run   install dependencies, build (release), build the model images the
+#                            scene names (modelc build), run the main job: the default scene
+#                            on the simulated device, report in out/
 #   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
 #                            suite, the ASan+UBSan unit tests and the TSan concurrency tests
 # Extra arguments after `run` go to the trainer (e.g. --scene FILE --seconds 5).
@@ -25,12 +26,18 @@ build() {  # build PRESET [TARGET...]
 case "$mode" in
   run)
     tools/install-deps.sh
-    build release trainer
+    build release trainer modelc
     mkdir -p out
-    scene=config/scenes/wall.toml
     args=("$@")
+    scene=config/scenes/duct.toml
+    for ((i = 0; i < ${#args[@]}; ++i)); do
+      if [ "${args[$i]}" = "--scene" ] && [ $((i + 1)) -lt ${#args[@]} ]; then scene=${args[$((i + 1))]}; fi
+    done
     if [[ " ${args[*]:-} " != *" --scene "* ]]; then args=(--scene "$scene" "${args[@]}"); fi
     if [[ " ${args[*]:-} " != *" --report "* ]]; then args+=(--report out/report.json); fi
+    echo "== modelc build --scene $scene"
+    build/release/bin/modelc build --scene "$scene" --report out/models.json
+    echo "== trainer ${args[*]}"
     exec build/release/bin/trainer --hal sim "${args[@]}"
     ;;
   test)
