@@ -154,8 +154,8 @@ Eigen::Vector3d exact_static(const ModalBuildSpec& spec, const ModalBuildResult&
 
 // Loaded nodes: one on the free end, one at mid-length on another side. The force is in no
 // symmetry plane, so every direction of the local compliance is exercised.
-const int kFreeEndNode = (kRings - 1) * kSegments + 2;
-const int kMidLengthNode = (kRings / 2) * kSegments + 5;
+constexpr int kFreeEndNode = (kRings - 1) * kSegments + 2;
+constexpr int kMidLengthNode = (kRings / 2) * kSegments + 5;
 const Eigen::Vector3d kForce(2.0e-4, -5.0e-4, -1.0e-3);  // N
 
 TEST(ModalBuild, SucceedsWithSurfaceNodesIncreasingAndWithoutTheClampedRing) {
