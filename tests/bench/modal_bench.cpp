@@ -62,57 +62,10 @@ const core::Expected<offline::ModalBuildSpec>& default_spec() {
   return spec;
 }
 
-// Float32 copies of what the image would hold (the runtime model reads only these).
-struct FloatModelData {
-  std::vector<float> rest_positions, mode_shapes, omega_squared, modal_damping, residual;
-  std::vector<std::uint32_t> surface_nodes;
-  std::uint32_t node_count = 0;
-  std::uint32_t mode_count = 0;
-
-  FloatModelData(const offline::ModalBuildSpec& spec, const offline::ModalBuildResult& build) {
-    node_count = static_cast<std::uint32_t>(spec.mesh.nodes.rows());
-    mode_count = static_cast<std::uint32_t>(build.basis.mode_count());
-    for (Eigen::Index node = 0; node < spec.mesh.nodes.rows(); ++node) {
-      for (int axis = 0; axis < 3; ++axis)
-        rest_positions.push_back(static_cast<float>(spec.mesh.nodes(node, axis)));
-    }
-    const Eigen::MatrixXd& shapes = build.basis.node_shapes;  // 3n × r, stored row-major
-    for (Eigen::Index row = 0; row < shapes.rows(); ++row) {
-      for (Eigen::Index col = 0; col < shapes.cols(); ++col)
-        mode_shapes.push_back(static_cast<float>(shapes(row, col)));
-    }
-    for (Eigen::Index i = 0; i < build.basis.omega_squared.size(); ++i) {
-      omega_squared.push_back(static_cast<float>(build.basis.omega_squared(i)));
-      modal_damping.push_back(static_cast<float>(build.modal_damping(i)));
-    }
-    for (int node : build.surface_nodes) surface_nodes.push_back(static_cast<std::uint32_t>(node));
-    if (build.residual) {
-      const Eigen::MatrixXd& compliance = build.residual->compliance;
-      for (Eigen::Index row = 0; row < compliance.rows(); ++row) {
-        for (Eigen::Index col = 0; col < compliance.cols(); ++col)
-          residual.push_back(static_cast<float>(compliance(row, col)));
-      }
-    }
-  }
-
-  model::ModalModelData view() const {
-    model::ModalModelData data;
-    data.node_count = node_count;
-    data.mode_count = mode_count;
-    data.rest_positions = rest_positions;
-    data.mode_shapes = mode_shapes;
-    data.omega_squared = omega_squared;
-    data.modal_damping = modal_damping;
-    data.surface_nodes = surface_nodes;
-    data.residual_compliance = residual;
-    return data;
-  }
-};
-
 struct DuctImage {
   offline::ModalBuildSpec spec;
   offline::ModalBuildResult build;
-  FloatModelData data;
+  offline::FloatModalData data;
 };
 
 // The default duct built with `mode_count` modes (static correction on), built on first use.
@@ -126,7 +79,7 @@ core::Expected<const DuctImage*> duct_image(std::int64_t mode_count) {
   spec.static_correction = true;
   auto build = offline::build_modal_model(spec);
   if (!build) return std::move(build).error();
-  FloatModelData data(spec, *build);
+  offline::FloatModalData data(spec, *build);
   auto image = std::make_unique<const DuctImage>(
       DuctImage{std::move(spec), std::move(*build), std::move(data)});
   const DuctImage* pointer = image.get();
@@ -184,10 +137,10 @@ core::Expected<model::ModalModel> make_runtime(const DuctImage& image, core::Are
 }
 
 void set_size_counters(benchmark::State& state, const DuctImage& image) {
-  state.counters["nodes"] = static_cast<double>(image.data.node_count);
+  state.counters["nodes"] = static_cast<double>(image.spec.mesh.nodes.rows());
   state.counters["free_dofs"] = static_cast<double>(image.build.shell.dofs.free_count());
-  state.counters["stored_modes"] = static_cast<double>(image.data.mode_count);
-  state.counters["surface_nodes"] = static_cast<double>(image.data.surface_nodes.size());
+  state.counters["stored_modes"] = static_cast<double>(image.build.basis.mode_count());
+  state.counters["surface_nodes"] = static_cast<double>(image.build.surface_nodes.size());
   state.counters["triangles"] = static_cast<double>(image.spec.mesh.triangles.rows());
 }
 

@@ -22,53 +22,6 @@ double median(std::vector<double> values) {
   return *middle;
 }
 
-// Float32 copies of what the image would hold, so the runtime model sees the appliance's data.
-struct FloatModelData {
-  std::vector<float> rest_positions, mode_shapes, omega_squared, modal_damping, residual;
-  std::vector<std::uint32_t> surface_nodes;
-
-  FloatModelData(const ModalBuildSpec& spec, const ModalBuildResult& build) {
-    const auto n = static_cast<std::size_t>(spec.mesh.nodes.rows());
-    for (std::size_t node = 0; node < n; ++node) {
-      for (int axis = 0; axis < 3; ++axis) {
-        rest_positions.push_back(
-            static_cast<float>(spec.mesh.nodes(static_cast<Eigen::Index>(node), axis)));
-      }
-    }
-    const Eigen::MatrixXd& shapes = build.basis.node_shapes;
-    for (Eigen::Index row = 0; row < shapes.rows(); ++row) {
-      for (Eigen::Index col = 0; col < shapes.cols(); ++col) {
-        mode_shapes.push_back(static_cast<float>(shapes(row, col)));
-      }
-    }
-    for (Eigen::Index i = 0; i < build.basis.omega_squared.size(); ++i) {
-      omega_squared.push_back(static_cast<float>(build.basis.omega_squared(i)));
-      modal_damping.push_back(static_cast<float>(build.modal_damping(i)));
-    }
-    for (int node : build.surface_nodes) surface_nodes.push_back(static_cast<std::uint32_t>(node));
-    if (build.residual) {
-      const Eigen::MatrixXd& r = build.residual->compliance;
-      for (Eigen::Index row = 0; row < r.rows(); ++row) {
-        for (Eigen::Index col = 0; col < r.cols(); ++col)
-          residual.push_back(static_cast<float>(r(row, col)));
-      }
-    }
-  }
-
-  model::ModalModelData view(std::uint32_t node_count, std::uint32_t mode_count) const {
-    model::ModalModelData data;
-    data.node_count = node_count;
-    data.mode_count = mode_count;
-    data.rest_positions = rest_positions;
-    data.mode_shapes = mode_shapes;
-    data.omega_squared = omega_squared;
-    data.modal_damping = modal_damping;
-    data.surface_nodes = surface_nodes;
-    data.residual_compliance = residual;
-    return data;
-  }
-};
-
 int nearest_surface_node(const ModalBuildSpec& spec, const ModalBuildResult& build,
                          const Eigen::Vector3d& point) {
   int best = -1;
@@ -129,7 +82,7 @@ core::Expected<std::vector<AccuracyPoint>> measure_modal_accuracy(
   }
   if (!(reference_local_max > 0.0)) return core::make_error("accuracy: the reference did not move");
 
-  const FloatModelData data(spec, build);
+  const FloatModalData data(spec, build);
   const auto stored = static_cast<std::uint32_t>(build.basis.mode_count());
   std::vector<AccuracyPoint> points;
   std::vector<float> field(3 * static_cast<std::size_t>(node_count));
@@ -146,7 +99,7 @@ core::Expected<std::vector<AccuracyPoint>> measure_modal_accuracy(
       settings.time_step_s = static_cast<float>(dt);
       settings.active_modes = static_cast<std::uint32_t>(modes);
       settings.static_correction = correction;
-      auto modal = model::ModalModel::create(data.view(node_count, stored), *arena, settings);
+      auto modal = model::ModalModel::create(data.view(), *arena, settings);
       if (!modal) return std::move(modal).error();
 
       AccuracyPoint point;

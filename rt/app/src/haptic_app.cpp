@@ -141,15 +141,7 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
                               " (build it with: modelc build --scene " + where + ")");
     }
     const model::ImageMetadataV1& metadata = image->metadata();
-    model::ModalModelData data;
-    data.node_count = metadata.node_count;
-    data.mode_count = metadata.mode_count;
-    data.rest_positions = image->floats(model::SectionId::rest_positions);
-    data.mode_shapes = image->floats(model::SectionId::mode_shapes);
-    data.omega_squared = image->floats(model::SectionId::omega_squared);
-    data.modal_damping = image->floats(model::SectionId::modal_damping);
-    data.surface_nodes = image->u32s(model::SectionId::surface_nodes);
-    data.residual_compliance = image->floats(model::SectionId::residual_compliance);
+    const model::ModalModelData data = model::modal_model_data(*image);
     model::ModalSettings settings;
     settings.time_step_s = static_cast<float>(static_cast<double>(scene.loop.period_ns) * 1e-9);
     settings.static_correction = metadata.static_correction != 0;

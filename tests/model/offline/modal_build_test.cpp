@@ -23,6 +23,7 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/model/image_format.hpp"
 #include "trainer/model/image_loader.hpp"
+#include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model_offline/loads.hpp"
 #include "trainer/model_offline/mesh_generators.hpp"
@@ -96,15 +97,7 @@ LoadedImage load(const fs::path& path) {
     return loaded;
   }
   loaded.image = *image;
-  const ImageMetadataV1& metadata = loaded.image.metadata();
-  loaded.data.node_count = metadata.node_count;
-  loaded.data.mode_count = metadata.mode_count;
-  loaded.data.rest_positions = loaded.image.floats(SectionId::rest_positions);
-  loaded.data.mode_shapes = loaded.image.floats(SectionId::mode_shapes);
-  loaded.data.omega_squared = loaded.image.floats(SectionId::omega_squared);
-  loaded.data.modal_damping = loaded.image.floats(SectionId::modal_damping);
-  loaded.data.surface_nodes = loaded.image.u32s(SectionId::surface_nodes);
-  loaded.data.residual_compliance = loaded.image.floats(SectionId::residual_compliance);
+  loaded.data = modal_model_data(loaded.image);
   return loaded;
 }
 

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "trainer/core/expected.hpp"
+#include "trainer/model/modal_model.hpp"
 #include "trainer/model_offline/modal_analysis.hpp"
 #include "trainer/model_offline/residual.hpp"
 #include "trainer/model_offline/shell_model.hpp"
@@ -52,6 +53,20 @@ struct ModalBuildResult {
 };
 
 core::Expected<ModalBuildResult> build_modal_model(const ModalBuildSpec& spec);
+
+// Float32 copies of what the image would hold, viewed as the runtime model's data: for
+// measuring the runtime model on a build without writing and reading an image file.
+class FloatModalData {
+ public:
+  FloatModalData(const ModalBuildSpec& spec, const ModalBuildResult& build);
+  model::ModalModelData view() const;
+
+ private:
+  std::vector<float> rest_positions_, mode_shapes_, omega_squared_, modal_damping_, residual_;
+  std::vector<std::uint32_t> surface_nodes_;
+  std::uint32_t node_count_ = 0;
+  std::uint32_t mode_count_ = 0;
+};
 
 // Writes the image (format: docs/model-image.md) atomically to `path`.
 core::Expected<void> write_modal_image(const ModalBuildSpec& spec, const ModalBuildResult& result,

@@ -25,6 +25,7 @@
 #include "trainer/kinematics/trocar_kinematics.hpp"
 #include "trainer/loop/periodic_loop.hpp"
 #include "trainer/model/image_loader.hpp"
+#include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model/rigid_contact.hpp"
 #include "trainer/safety/safety_supervisor.hpp"
