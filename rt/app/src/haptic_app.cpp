@@ -108,7 +108,7 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     InstrumentState& state = app->instruments_[i];
     state.kinematics = kinematics::TrocarKinematics(geometry);
     state.first_channel = device_index * kJointCount;
-    for (std::size_t j = 0; j < kJointCount; ++j) state.scales[j] = config::joint_scale(device.joints[j]);
+    for (std::size_t j = 0; j < kJointCount; ++j) state.kinds[j] = device.joints[j].kind;
   }
 
   for (std::size_t k = 0; k < scene.objects.size(); ++k) {
@@ -205,14 +205,14 @@ void HapticApp::update_instrument(std::size_t index, const loop::CycleTiming& ti
   for (std::size_t j = 0; j < kJointCount; ++j) {
     const hal::EncoderSample& sample = encoder_samples_[state.first_channel + j];
     all_valid = all_valid && sample.valid;
-    position[j] = static_cast<float>(state.scales[j].position_from_counts(sample.counts));
+    position[j] = sample.position;  // joint-side SI, converted by the backend (HAL contract)
   }
   if (!all_valid) {
     ++stats_.invalid_encoder_cycles;
     position = state.position;  // hold the last good reading; the error streak guards this
   } else if (state.has_position) {
     for (std::size_t j = 0; j < kJointCount; ++j) {
-      safety_.check_joint_step(state.scales[j].kind == hal::JointKind::prismatic,
+      safety_.check_joint_step(state.kinds[j] == hal::JointKind::prismatic,
                                state.position[j], position[j], dt, timing.cycle_index);
       const float raw_rate = (position[j] - state.position[j]) / dt;
       state.velocity[j] += alpha * (raw_rate - state.velocity[j]);

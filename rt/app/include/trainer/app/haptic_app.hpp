@@ -105,7 +105,7 @@ class HapticApp final : public loop::CycleTask {
  private:
   struct InstrumentState {
     kinematics::TrocarKinematics kinematics;
-    std::array<hal::JointScale, 5> scales;
+    std::array<hal::JointKind, 5> kinds{};  // for the encoder-jump limits
     std::size_t first_channel = 0;
     kinematics::JointVector position{};
     kinematics::JointVector velocity{};
