@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include "build_command.hpp"
+#include "catheter_command.hpp"
 #include "static_command.hpp"
 
 int main(int argc, char** argv) {
@@ -15,6 +16,7 @@ int main(int argc, char** argv) {
   trainer::tools::modelc::add_static_command(app, exit_code);
   trainer::tools::modelc::add_build_command(app, exit_code);
   trainer::tools::modelc::add_accuracy_command(app, exit_code);
+  trainer::tools::modelc::add_catheter_static_command(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

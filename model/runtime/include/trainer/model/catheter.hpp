@@ -1,0 +1,241 @@
+// The particle catheter at run time (Basdogan §V-C-2, eq. 27–28; METHODS.md §2): N particles
+// uniformly along the centreline joined by linear (axial) springs and torsional (bending)
+// springs, viscous dissipation per particle, external forces, held particles (forceps jaws,
+// introducer) and an optional clamped start. Integrated by semi-implicit Euler (eq. 28),
+// sub-stepped inside one haptic period at a step the model computes for itself.
+//
+// Mapping of the beam to the chain (derivation in docs/catheter.md):
+//   l0  = L/(N−1)            rest segment length (m)
+//   m   = ρ_l L / N          every particle the same mass (kg): total mass exact, ends not halved
+//   k_s = EA / l0            axial spring of one segment, a bar of length l0 (N/m)
+//   k_b = EI / l0            torsional spring on the angle θ between neighbouring segments
+//                            (N·m/rad): discrete elastica M = EI κ with κ ≈ θ / l0
+//   E_b = ½ k_b θ², θ = atan2(|a×b|, a·b), differentiated exactly (bending_gradient()).
+//   Clamped start: particle 0 held at its rest position and a root hinge of stiffness 2 k_b
+//   between the clamp direction and the first segment — the half cell [0, l0/2] the interior
+//   hinges do not cover. This makes the cantilever tip deflection F L³/(3EI)·(1 + 1/(2n²))
+//   with n = N−1 segments (second order); fixing particles 0 and 1 instead gives
+//   (1 − 3/(2n) + 1/(2n²)), −3.7 % at N = 41.
+//   Dissipation −b v with b in N·s/m per particle (not a damping ratio).
+//
+// Stability: semi-implicit Euler is stable for Δt < 2/ω_max. ω_max² ≤ 4 k_s/m (axial chain)
+// + 20 k_b/(m l0²) (bending chain: the interior stencil k_b/l0² [1 −4 6 −4 1] has spectral
+// radius 16; 20 covers the 2 k_b root hinge by Gershgorin). The stable substep is
+// 0.5 · 2/ω_max, and also ≤ m/b so the explicit damping never overshoots. Tension adds a
+// geometric stiffness T/l0 per segment that the bound ignores; it is below k_s while the
+// strain is below 100 %.
+//
+// Precision: float positions/velocities (SI), internal sums in float. Memory: every array is
+// carved from a core::Arena at create(); after create() everything is noexcept, heap-free and
+// lock-free. One thread (the haptic thread) owns the model.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>  // cross()
+
+#include "trainer/core/arena.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/core/status.hpp"
+
+namespace trainer::model {
+
+// Physical description of the catheter (SI).
+struct CatheterParams {
+  float length_m = 0.0F;
+  float outer_radius_m = 0.0F;               // sphere of influence per particle (contact)
+  float bending_stiffness_n_m2 = 0.0F;       // EI
+  float axial_stiffness_n = 0.0F;            // EA
+  float linear_density_kg_per_m = 0.0F;      // ρ_l
+  float damping_n_s_per_m = 0.0F;            // b per particle, ≥ 0
+  std::uint32_t particle_count = 0;          // N, 3..kMaxParticles
+};
+
+// Rest placement and the cycle budget.
+struct CatheterSetup {
+  Eigen::Vector3f start_position_m = Eigen::Vector3f::Zero();  // particle 0
+  Eigen::Vector3f direction = Eigen::Vector3f::UnitX();         // rest tangent, normalised here
+  float haptic_period_s = 1e-3F;
+  std::uint32_t max_substeps = 64;  // most substeps one haptic period may cost
+};
+
+// Spring constants of the chain, in the precision of the caller (float at run time, double in
+// the offline static check, both through the same code below).
+template <class Scalar>
+struct ChainStiffness {
+  Scalar axial_n_per_m = 0;          // k_s
+  Scalar bending_n_m_per_rad = 0;    // k_b
+  Scalar rest_length_m = 0;          // l0
+  bool root_clamped = false;         // root hinge 2 k_b against root_tangent at particle 0
+  Eigen::Matrix<Scalar, 3, 1> root_tangent = Eigen::Matrix<Scalar, 3, 1>::UnitX();  // unit
+};
+
+// Angle (rad, 0..π) between segments a and b.
+template <class Scalar>
+Scalar segment_angle(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<Scalar, 3, 1>& b) noexcept {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+// Gradient of E = ½ k θ² with respect to the segment vectors a and b. With â, b̂ unit:
+//   ∂θ/∂a = −(b̂ − cosθ â) / (|a| sinθ),  ∂θ/∂b = −(â − cosθ b̂) / (|b| sinθ),
+// so ∂E/∂a = −k (θ/sinθ)(b̂ − cosθ â)/|a|. θ/sinθ is smooth at θ = 0 (→ 1, series used below
+// 1e-4 rad), so the straight chain is not a singular direction. Near θ = π (a segment folded
+// back on its neighbour, unphysical) the factor is capped. Zero-length segments give zero.
+template <class Scalar>
+void bending_gradient(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<Scalar, 3, 1>& b,
+                      Scalar stiffness, Eigen::Matrix<Scalar, 3, 1>& gradient_a,
+                      Eigen::Matrix<Scalar, 3, 1>& gradient_b) noexcept {
+  const Scalar length_a = a.norm();
+  const Scalar length_b = b.norm();
+  if (!(length_a > Scalar(0)) || !(length_b > Scalar(0))) {
+    gradient_a.setZero();
+    gradient_b.setZero();
+    return;
+  }
+  const Eigen::Matrix<Scalar, 3, 1> unit_a = a / length_a;
+  const Eigen::Matrix<Scalar, 3, 1> unit_b = b / length_b;
+  const Scalar sine = unit_a.cross(unit_b).norm();
+  const Scalar cosine = unit_a.dot(unit_b);
+  const Scalar theta = std::atan2(sine, cosine);
+  Scalar theta_over_sine = Scalar(1) + theta * theta / Scalar(6);
+  if (theta > Scalar(1e-4)) {
+    constexpr Scalar kMaxFactor = Scalar(1e4);
+    theta_over_sine = sine > theta / kMaxFactor ? theta / sine : kMaxFactor;
+  }
+  const Scalar scale = -stiffness * theta_over_sine;
+  gradient_a = scale * (unit_b - cosine * unit_a) / length_a;
+  gradient_b = scale * (unit_a - cosine * unit_b) / length_b;
+}
+
+// Adds the internal forces of the chain (eq. 27: axial k_s (l − l0), bending from ½ k_b θ²,
+// minus the energy gradient) to `forces_n`. positions and forces have the same size.
+template <class Scalar>
+void add_chain_forces(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
+                      const ChainStiffness<Scalar>& stiffness,
+                      std::span<Eigen::Matrix<Scalar, 3, 1>> forces_n) noexcept {
+  using Vector = Eigen::Matrix<Scalar, 3, 1>;
+  const std::size_t count = positions_m.size();
+  for (std::size_t i = 0; i + 1 < count; ++i) {
+    const Vector segment = positions_m[i + 1] - positions_m[i];
+    const Scalar length = segment.norm();
+    if (!(length > Scalar(0))) continue;  // coincident particles: no defined direction
+    const Vector force = stiffness.axial_n_per_m * (length - stiffness.rest_length_m) / length * segment;
+    forces_n[i] += force;
+    forces_n[i + 1] -= force;
+  }
+  Vector gradient_a;
+  Vector gradient_b;
+  for (std::size_t i = 1; i + 1 < count; ++i) {
+    bending_gradient<Scalar>(positions_m[i] - positions_m[i - 1], positions_m[i + 1] - positions_m[i],
+                             stiffness.bending_n_m_per_rad, gradient_a, gradient_b);
+    forces_n[i - 1] += gradient_a;
+    forces_n[i] -= gradient_a - gradient_b;
+    forces_n[i + 1] -= gradient_b;
+  }
+  if (stiffness.root_clamped && count >= 2) {
+    bending_gradient<Scalar>(stiffness.root_tangent, positions_m[1] - positions_m[0],
+                             Scalar(2) * stiffness.bending_n_m_per_rad, gradient_a, gradient_b);
+    forces_n[0] += gradient_b;
+    forces_n[1] -= gradient_b;
+  }
+}
+
+// Elastic energy (J) of the chain: Σ ½ k_s (l − l0)² + Σ ½ k_b θ² (+ ½ (2 k_b) θ_root²).
+template <class Scalar>
+Scalar chain_energy(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
+                    const ChainStiffness<Scalar>& stiffness) noexcept {
+  const std::size_t count = positions_m.size();
+  Scalar energy = 0;
+  for (std::size_t i = 0; i + 1 < count; ++i) {
+    const Scalar stretch = (positions_m[i + 1] - positions_m[i]).norm() - stiffness.rest_length_m;
+    energy += Scalar(0.5) * stiffness.axial_n_per_m * stretch * stretch;
+  }
+  for (std::size_t i = 1; i + 1 < count; ++i) {
+    const Scalar theta =
+        segment_angle<Scalar>(positions_m[i] - positions_m[i - 1], positions_m[i + 1] - positions_m[i]);
+    energy += Scalar(0.5) * stiffness.bending_n_m_per_rad * theta * theta;
+  }
+  if (stiffness.root_clamped && count >= 2) {
+    const Scalar theta = segment_angle<Scalar>(stiffness.root_tangent, positions_m[1] - positions_m[0]);
+    energy += stiffness.bending_n_m_per_rad * theta * theta;  // ½ (2 k_b) θ²
+  }
+  return energy;
+}
+
+class Catheter {
+ public:
+  using Vec3 = Eigen::Vector3f;
+  static constexpr std::uint32_t kMaxParticles = 256;
+
+  // Setup path: validates every parameter, computes the spring constants and the stable
+  // substep, refuses a catheter whose haptic period needs more than setup.max_substeps
+  // substeps (the error names the parameters and the required count), and carves the state
+  // from `arena`. Rest shape: straight from start_position_m along direction.
+  static core::Expected<Catheter> create(const CatheterParams& params, const CatheterSetup& setup,
+                                         core::Arena& arena);
+
+  // ---- RT path: noexcept, no heap ----
+
+  // Adds force_n (N) on particle i until clear_forces(). Refuses an unknown particle
+  // (invalid_argument) and a non-finite force (numeric_error); nothing applied then.
+  core::Status add_force(std::uint32_t particle, const Vec3& force_n) noexcept;
+  void clear_forces() noexcept;
+
+  // Pins particle i at position_m (velocity zero) at every substep until release(i).
+  core::Status hold(std::uint32_t particle, const Vec3& position_m) noexcept;
+  core::Status release(std::uint32_t particle) noexcept;
+  // Clamped start: particle 0 at its rest position, root hinge along the rest direction.
+  void clamp_start(bool clamped) noexcept;
+
+  // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps of eq. 28.
+  // Refuses (state unchanged) a non-positive/non-finite period or one needing more substeps
+  // than the budget (invalid_argument). If any position or velocity becomes non-finite the
+  // state returns to the one before this call and numeric_error is returned.
+  core::Status step(float period_s) noexcept;
+
+  void reset() noexcept;  // rest shape, zero velocity, forces and holds cleared, clamp off
+
+  std::span<const Vec3> positions_m() const noexcept { return {positions_.data(), count_}; }
+  std::span<const Vec3> velocities_m_per_s() const noexcept { return {velocities_.data(), count_}; }
+  double kinetic_energy_j() const noexcept;
+  double potential_energy_j() const noexcept;  // elastic (springs + bending), external work excluded
+  float stable_substep_s() const noexcept { return stable_substep_s_; }
+  std::uint32_t substeps_per_period() const noexcept { return substeps_per_period_; }
+  std::uint32_t particle_count() const noexcept { return count_; }
+  float particle_mass_kg() const noexcept { return mass_kg_; }
+  float radius_m() const noexcept { return radius_m_; }
+  const ChainStiffness<float>& stiffness() const noexcept { return stiffness_; }
+
+  // ceil(period / substep) for a positive substep (exposed for tests and config checks).
+  static std::uint64_t substeps_for(double period_s, double substep_s) noexcept;
+
+ private:
+  Catheter() = default;
+  bool substep(float dt_s) noexcept;  // false if the state became non-finite
+
+  std::uint32_t count_ = 0;
+  float mass_kg_ = 0.0F;
+  float damping_n_s_per_m_ = 0.0F;
+  float radius_m_ = 0.0F;
+  float stable_substep_s_ = 0.0F;
+  std::uint32_t substeps_per_period_ = 0;
+  std::uint32_t max_substeps_ = 0;
+  ChainStiffness<float> stiffness_{};
+  Vec3 start_m_ = Vec3::Zero();
+  Vec3 direction_ = Vec3::UnitX();
+
+  std::span<Vec3> positions_;
+  std::span<Vec3> velocities_;
+  std::span<Vec3> forces_;           // scratch per substep
+  std::span<Vec3> external_n_;
+  std::span<Vec3> hold_targets_m_;
+  std::span<std::uint8_t> held_;     // 1 = pinned
+  std::span<Vec3> saved_positions_;  // last good state (start of step())
+  std::span<Vec3> saved_velocities_;
+};
+
+}  // namespace trainer::model
