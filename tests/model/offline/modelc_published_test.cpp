@@ -26,6 +26,7 @@
 #include <sstream>
 #include <string>
 
+#include "command_test_support.hpp"
 #include "trainer/model_offline/gmsh_reader.hpp"
 #include "trainer/model_offline/loads.hpp"
 #include "trainer/model_offline/mesh_generators.hpp"
@@ -62,34 +63,7 @@ std::string read_text(const fs::path& path) {
   return text.str();
 }
 
-class ModelcPublished : public ::testing::Test {
- protected:
-  void SetUp() override {
-    directory_ = fs::temp_directory_path() /
-                 ("modelc_published_test_" + std::to_string(::getpid()) + "_" +
-                  ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(directory_);
-  }
-  void TearDown() override { fs::remove_all(directory_); }
-
-  // Runs `program arguments`; returns its exit status, stdout+stderr in `output_`.
-  int run(const std::string& program, const std::string& arguments) {
-    const fs::path log = directory_ / "output.txt";
-    const std::string command = program + " " + arguments + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    output_ = read_text(log);
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-
-  nlohmann::json report() const {
-    std::ifstream file(report_path());
-    return nlohmann::json::parse(file);
-  }
-  std::string report_path() const { return (directory_ / "report.json").string(); }
-
-  fs::path directory_;
-  std::string output_;
-};
+using ModelcPublished = testing::CommandTest;
 
 // The single node of a 0-D group in the report, with its position checked.
 const nlohmann::json& single_node(const nlohmann::json& report, const std::string& group,

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <string>
 
+#include "command_test_support.hpp"
 #include "trainer/model_offline/gmsh_reader.hpp"
 #include "trainer/model_offline/loads.hpp"
 #include "trainer/model_offline/mesh_generators.hpp"
@@ -26,37 +27,9 @@ namespace fs = std::filesystem;
 
 const std::string kDataDir = std::string(TRAINER_SOURCE_DIR) + "/tests/model/offline/data/";
 
-class ModelcStatic : public ::testing::Test {
+class ModelcStatic : public testing::CommandTest {
  protected:
-  void SetUp() override {
-    directory_ = fs::temp_directory_path() /
-                 ("modelc_static_test_" + std::to_string(::getpid()) + "_" +
-                  ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(directory_);
-  }
-  void TearDown() override { fs::remove_all(directory_); }
-
-  // Runs modelc with `arguments`; returns its exit status, stdout+stderr in `output_`.
-  int run(const std::string& arguments) {
-    const fs::path log = directory_ / "output.txt";
-    const std::string command =
-        std::string(MODELC_PATH) + " " + arguments + " > " + log.string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    std::ifstream file(log);
-    std::ostringstream text;
-    text << file.rdbuf();
-    output_ = text.str();
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-
-  nlohmann::json report() const {
-    std::ifstream file(report_path());
-    return nlohmann::json::parse(file);
-  }
-  std::string report_path() const { return (directory_ / "report.json").string(); }
-
-  fs::path directory_;
-  std::string output_;
+  int run(const std::string& arguments) { return CommandTest::run(MODELC_PATH, arguments); }
 };
 
 TEST_F(ModelcStatic, TubeInUniformTensionMatchesTheExactStretch) {
