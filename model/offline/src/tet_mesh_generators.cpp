@@ -1,6 +1,8 @@
 // Structured tet meshes (box, cylinder) and boundary-face extraction.
 #include "trainer/model_offline/tet_mesh_generators.hpp"
 
+#include "trainer/model_offline/mesh_generators.hpp"
+
 #include <xxhash.h>
 
 #include <algorithm>
@@ -24,22 +26,6 @@ constexpr std::int64_t kMaxGeneratedNodes = 10'000'000;
 
 using Tet = std::array<int, 4>;
 using Face = std::array<int, 3>;
-
-// Parameters printed as hexadecimal floats, so the hash changes with any bit of any input.
-std::uint64_t hash_parameters(const char* generator, std::initializer_list<double> reals,
-                              std::initializer_list<int> integers) {
-  std::string text = generator;
-  char buffer[64];
-  for (const double value : reals) {
-    std::snprintf(buffer, sizeof buffer, " %a", value);
-    text += buffer;
-  }
-  for (const int value : integers) {
-    text += ' ';
-    text += std::to_string(value);
-  }
-  return XXH64(text.data(), text.size(), 0);
-}
 
 bool positive_finite(double value) {
   return value > 0.0 && std::isfinite(value);
@@ -192,7 +178,7 @@ core::Expected<TetMesh> make_tet_box(double lx_m, double ly_m, double lz_m, int 
                      {"z0", [](const Eigen::Vector3d& p) { return p.z() == 0.0; }},
                      {"z1", [lz_m](const Eigen::Vector3d& p) { return p.z() == lz_m; }}},
                     mesh);
-  mesh.source_hash = hash_parameters("make_tet_box v1", {lx_m, ly_m, lz_m}, {nx, ny, nz});
+  mesh.source_hash = hash_generator_parameters("make_tet_box v1", {lx_m, ly_m, lz_m}, {nx, ny, nz});
   return mesh;
 }
 
@@ -279,7 +265,7 @@ core::Expected<TetMesh> make_tet_cylinder(double radius_m, double height_m, int 
                       }}},
                     mesh);
   mesh.node_sets["top_center"] = {axial * section_count};
-  mesh.source_hash = hash_parameters("make_tet_cylinder v1", {radius_m, height_m}, {radial, axial});
+  mesh.source_hash = hash_generator_parameters("make_tet_cylinder v1", {radius_m, height_m}, {radial, axial});
   return mesh;
 }
 

@@ -13,19 +13,23 @@ namespace trainer::model {
 namespace {
 
 // clang-format off
+constexpr std::uint32_t kModal = owner_bit(ModelKind::modal_shell);
+constexpr std::uint32_t kTensor = owner_bit(ModelKind::tet_tensor);
+constexpr std::uint32_t kBoth = kModal | kTensor;
+
 constexpr std::array<SectionDescriptor, 12> kSectionDescriptors = {{
-  {SectionId::metadata,            "metadata",            ElementType::u8,  ModelKind::modal_shell, true,  1},
-  {SectionId::rest_positions,      "rest_positions",      ElementType::f32, ModelKind::modal_shell, false, 3},
-  {SectionId::triangles,           "triangles",           ElementType::u32, ModelKind::modal_shell, false, 3},
-  {SectionId::fixed_nodes,         "fixed_nodes",         ElementType::u32, ModelKind::modal_shell, false, 1},
-  {SectionId::surface_nodes,       "surface_nodes",       ElementType::u32, ModelKind::modal_shell, false, 1},
-  {SectionId::mode_shapes,         "mode_shapes",         ElementType::f32, ModelKind::modal_shell, false, 0},
-  {SectionId::omega_squared,       "omega_squared",       ElementType::f32, ModelKind::modal_shell, false, 1},
-  {SectionId::modal_damping,       "modal_damping",       ElementType::f32, ModelKind::modal_shell, false, 1},
-  {SectionId::residual_compliance, "residual_compliance", ElementType::f32, ModelKind::modal_shell, false, 0},
-  {SectionId::tensor_displacement, "tensor_displacement", ElementType::f32, ModelKind::tet_tensor,  false, 0},
-  {SectionId::tensor_force,        "tensor_force",        ElementType::f32, ModelKind::tet_tensor,  false, 0},
-  {SectionId::tensor_nodes,        "tensor_nodes",        ElementType::u32, ModelKind::tet_tensor,  false, 0},
+  {SectionId::metadata,            "metadata",            ElementType::u8,  kBoth,   1},
+  {SectionId::rest_positions,      "rest_positions",      ElementType::f32, kBoth,   3},
+  {SectionId::triangles,           "triangles",           ElementType::u32, kBoth,   3},
+  {SectionId::fixed_nodes,         "fixed_nodes",         ElementType::u32, kBoth,   1},
+  {SectionId::surface_nodes,       "surface_nodes",       ElementType::u32, kBoth,   1},
+  {SectionId::mode_shapes,         "mode_shapes",         ElementType::f32, kModal,  0},
+  {SectionId::omega_squared,       "omega_squared",       ElementType::f32, kModal,  1},
+  {SectionId::modal_damping,       "modal_damping",       ElementType::f32, kModal,  1},
+  {SectionId::residual_compliance, "residual_compliance", ElementType::f32, kModal,  0},
+  {SectionId::tensor_displacement, "tensor_displacement", ElementType::f32, kTensor, 9},
+  {SectionId::tensor_force,        "tensor_force",        ElementType::f32, kTensor, 9},
+  {SectionId::tensor_nodes,        "tensor_nodes",        ElementType::u32, kTensor, 1},
 }};
 // clang-format on
 
@@ -41,6 +45,16 @@ const SectionDescriptor* find_section_descriptor(std::uint32_t id) noexcept {
 const char* section_name(SectionId id) noexcept {
   const SectionDescriptor* descriptor = find_section_descriptor(static_cast<std::uint32_t>(id));
   return descriptor != nullptr ? descriptor->name : "unknown";
+}
+
+std::string owners_text(const SectionDescriptor& descriptor) {
+  std::string text;
+  for (const ModelKind kind : {ModelKind::modal_shell, ModelKind::tet_tensor}) {
+    if (!section_belongs_to(descriptor, kind)) continue;
+    if (!text.empty()) text.append(" and ");
+    text.append(model_kind_name(kind));
+  }
+  return text;
 }
 
 const char* model_kind_name(ModelKind kind) noexcept {

@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cinttypes>
@@ -185,10 +186,9 @@ Expected<SectionView> validate_entry(const SectionEntryV1& entry, std::uint32_t 
   }
   // Built only on failure: the success path must not allocate.
   const auto name = [&entry] { return section_label(entry.id); };
-  if (!descriptor->owner_any && descriptor->owner != kind) {
+  if (!section_belongs_to(*descriptor, kind)) {
     return image_error(label, name() + " does not belong in a " + model_kind_name(kind) +
-                                  " image (it is part of " + model_kind_name(descriptor->owner) +
-                                  ")");
+                                  " image (it is part of " + owners_text(*descriptor) + ")");
   }
   for (std::size_t other = 0; other < earlier.size(); ++other) {
     if (static_cast<std::uint32_t>(earlier[other].id) == entry.id) {
@@ -440,6 +440,26 @@ Expected<void> check_node_list(const ModelImage& image, SectionId id, std::uint3
   return {};
 }
 
+Expected<void> check_triangles(const ModelImage& image, std::uint32_t node_count,
+                               std::string_view label) {
+  if (image.rows(SectionId::triangles) == 0) {
+    return image_error(label, "section 'triangles' is empty");
+  }
+  const std::span<const std::uint32_t> triangles = image.u32s(SectionId::triangles);
+  for (std::size_t row = 0; row < triangles.size() / 3; ++row) {
+    const std::uint32_t a = triangles[row * 3];
+    const std::uint32_t b = triangles[row * 3 + 1];
+    const std::uint32_t c = triangles[row * 3 + 2];
+    if (a >= node_count || b >= node_count || c >= node_count || a == b || b == c || a == c) {
+      return image_error(
+          label, "section 'triangles' row " + std::to_string(row) + " (" + std::to_string(a) +
+                     ", " + std::to_string(b) + ", " + std::to_string(c) +
+                     ") needs three distinct nodes below node_count " + std::to_string(node_count));
+    }
+  }
+  return {};
+}
+
 Expected<void> check_modal_shell(const ModelImage& image, std::string_view label) {
   const ImageMetadataV1& metadata = image.metadata();
   constexpr SectionId kRequired[] = {SectionId::rest_positions, SectionId::triangles,
@@ -491,21 +511,7 @@ Expected<void> check_modal_shell(const ModelImage& image, std::string_view label
                                     number(damping[i]) + ": damping must be >= 0");
     }
   }
-  if (image.rows(SectionId::triangles) == 0) {
-    return image_error(label, "section 'triangles' is empty");
-  }
-  const std::span<const std::uint32_t> triangles = image.u32s(SectionId::triangles);
-  for (std::size_t row = 0; row < triangles.size() / 3; ++row) {
-    const std::uint32_t a = triangles[row * 3];
-    const std::uint32_t b = triangles[row * 3 + 1];
-    const std::uint32_t c = triangles[row * 3 + 2];
-    if (a >= node_count || b >= node_count || c >= node_count || a == b || b == c || a == c) {
-      return image_error(
-          label, "section 'triangles' row " + std::to_string(row) + " (" + std::to_string(a) +
-                     ", " + std::to_string(b) + ", " + std::to_string(c) +
-                     ") needs three distinct nodes below node_count " + std::to_string(node_count));
-    }
-  }
+  if (auto ok = check_triangles(image, node_count, label); !ok) return ok;
   if (auto ok = check_node_list(image, SectionId::fixed_nodes, node_count, label); !ok) return ok;
   const std::uint32_t surface_count = metadata.surface_node_count;
   if (surface_count > 0 && !image.has(SectionId::surface_nodes)) {
@@ -556,6 +562,123 @@ Expected<void> check_modal_shell(const ModelImage& image, std::string_view label
                                         std::to_string(row) + ", " + std::to_string(col) +
                                         ") = " + number(upper) + " but (" + std::to_string(col) +
                                         ", " + std::to_string(row) + ") = " + number(lower));
+        }
+      }
+    }
+  }
+  return {};
+}
+
+// ---- tetrahedral tensor consistency ----
+
+Expected<void> check_tet_tensor(const ModelImage& image, std::string_view label) {
+  const ImageMetadataV1& metadata = image.metadata();
+  constexpr SectionId kRequired[] = {SectionId::rest_positions, SectionId::triangles,
+                                     SectionId::surface_nodes,  SectionId::tensor_nodes,
+                                     SectionId::tensor_displacement, SectionId::tensor_force};
+  for (const SectionId id : kRequired) {
+    if (!image.has(id)) {
+      return image_error(label, std::string("a tet_tensor image needs ") + section_label(id) +
+                                    ", which is missing");
+    }
+  }
+  if (metadata.element_type != static_cast<std::uint32_t>(FiniteElementType::tet4) ||
+      metadata.mode_count != 0) {
+    return image_error(label, "metadata element_type " + std::to_string(metadata.element_type) +
+                                  " and mode_count " + std::to_string(metadata.mode_count) +
+                                  ": a tet_tensor image is built from tet4 (3) with no modes (0)");
+  }
+  if (!(metadata.young_modulus_pa > 0.0) ||
+      !(metadata.poisson_ratio > -1.0 && metadata.poisson_ratio < 0.5)) {
+    return image_error(label, "metadata young_modulus_pa " + number(metadata.young_modulus_pa) +
+                                  ", poisson_ratio " + number(metadata.poisson_ratio) +
+                                  ": expected E > 0 and -1 < nu < 0.5");
+  }
+  const std::uint32_t node_count = metadata.node_count;
+  const std::uint32_t contact_count = metadata.surface_node_count;
+  if (node_count == 0 || contact_count == 0) {
+    return image_error(label, "metadata node_count " + std::to_string(node_count) +
+                                  " and surface_node_count " + std::to_string(contact_count) +
+                                  ": a tet_tensor image needs both > 0");
+  }
+  if (auto ok =
+          require_rows(image, SectionId::rest_positions, node_count, "metadata node_count", label);
+      !ok) {
+    return ok;
+  }
+  if (auto ok = check_triangles(image, node_count, label); !ok) return ok;
+  for (const SectionId id :
+       {SectionId::fixed_nodes, SectionId::surface_nodes, SectionId::tensor_nodes}) {
+    if (auto ok = check_node_list(image, id, node_count, label); !ok) return ok;
+  }
+  if (auto ok = require_rows(image, SectionId::surface_nodes, contact_count,
+                             "metadata surface_node_count", label);
+      !ok) {
+    return ok;
+  }
+  const std::span<const std::uint32_t> contacts = image.u32s(SectionId::surface_nodes);
+  const std::span<const std::uint32_t> responses = image.u32s(SectionId::tensor_nodes);
+  const std::span<const std::uint32_t> fixed = image.u32s(SectionId::fixed_nodes);
+  if (responses.empty()) return image_error(label, "section 'tensor_nodes' is empty");
+  // Every contact node must have a stored response (its mutual-influence rows) and be free.
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    if (!std::binary_search(responses.begin(), responses.end(), contacts[k])) {
+      return image_error(label, "surface node " + std::to_string(contacts[k]) + " (entry " +
+                                    std::to_string(k) +
+                                    ") is not in section 'tensor_nodes': every contact node "
+                                    "needs its stored response");
+    }
+    if (std::binary_search(fixed.begin(), fixed.end(), contacts[k])) {
+      return image_error(label, "surface node " + std::to_string(contacts[k]) +
+                                    " is also a fixed node: a fixed node cannot be displaced");
+    }
+  }
+  const std::uint64_t response_count = responses.size();
+  if (auto ok = require_rows(image, SectionId::tensor_displacement, contact_count * response_count,
+                             "surface_node_count × rows of 'tensor_nodes'", label);
+      !ok) {
+    return ok;
+  }
+  if (auto ok = require_rows(image, SectionId::tensor_force, contact_count,
+                             "metadata surface_node_count", label);
+      !ok) {
+    return ok;
+  }
+  // Structural checks that catch a wrong build or a writer bug (the checksum catches damage):
+  // F(k) is symmetric with a positive diagonal, and T(k, k) is the identity — the displacement
+  // imposed at k is what k does. Tolerances sit far above float rounding of a double build.
+  const std::span<const float> forces = image.floats(SectionId::tensor_force);
+  const std::span<const float> tensors = image.floats(SectionId::tensor_displacement);
+  for (std::size_t k = 0; k < contact_count; ++k) {
+    const float* force = forces.data() + 9 * k;
+    float largest = 0.0F;
+    for (int i = 0; i < 9; ++i) largest = std::fmax(largest, std::fabs(force[i]));
+    for (int row = 0; row < 3; ++row) {
+      if (!(force[4 * row] > 0.0F)) {
+        return image_error(label, "section 'tensor_force' contact " + std::to_string(k) +
+                                      " diagonal " + std::to_string(row) + " is " +
+                                      number(force[4 * row]) + ", expected > 0");
+      }
+      for (int col = row + 1; col < 3; ++col) {
+        if (std::fabs(force[3 * row + col] - force[3 * col + row]) > 1e-4F * largest) {
+          return image_error(label, "section 'tensor_force' contact " + std::to_string(k) +
+                                        " is not symmetric");
+        }
+      }
+    }
+    const auto self = static_cast<std::size_t>(
+        std::lower_bound(responses.begin(), responses.end(), contacts[k]) - responses.begin());
+    const float* tensor = tensors.data() + 9 * (k * response_count + self);
+    for (int row = 0; row < 3; ++row) {
+      for (int col = 0; col < 3; ++col) {
+        const float expected = row == col ? 1.0F : 0.0F;
+        if (std::fabs(tensor[3 * row + col] - expected) > 1e-3F) {
+          return image_error(label, "section 'tensor_displacement' T(k, k) of contact " +
+                                        std::to_string(k) + " (node " +
+                                        std::to_string(contacts[k]) + ") element (" +
+                                        std::to_string(row) + ", " + std::to_string(col) +
+                                        ") is " + number(tensor[3 * row + col]) + ", expected " +
+                                        number(expected));
         }
       }
     }
@@ -708,6 +831,8 @@ core::Expected<ModelImage> parse_model_image(std::span<const std::byte> file,
   }
   if (expected_kind == ModelKind::modal_shell) {
     if (auto ok = check_modal_shell(image, file_label); !ok) return std::move(ok).error();
+  } else {
+    if (auto ok = check_tet_tensor(image, file_label); !ok) return std::move(ok).error();
   }
   return image;
 }

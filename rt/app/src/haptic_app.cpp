@@ -36,6 +36,80 @@ safety::SafetyLimits limits_from(const config::SafetyConfig& cfg) {
   return limits;
 }
 
+static_assert(config::kMaxCatheterParticles == model::Catheter::kMaxParticles,
+              "the configuration's particle limit must be the runtime catheter's");
+
+// The chain from its configuration: one loop period per cycle, the definition's budget.
+core::Expected<model::Catheter> create_catheter(const config::CatheterConfig& cfg, float period_s,
+                                                core::Arena& arena) {
+  model::CatheterParams params;
+  params.length_m = static_cast<float>(cfg.length_m);
+  params.outer_radius_m = static_cast<float>(cfg.outer_radius_m);
+  params.bending_stiffness_n_m2 = static_cast<float>(cfg.bending_stiffness_n_m2);
+  params.axial_stiffness_n = static_cast<float>(cfg.axial_stiffness_n);
+  params.linear_density_kg_per_m = static_cast<float>(cfg.linear_density_kg_per_m);
+  params.damping_n_s_per_m = static_cast<float>(cfg.damping_n_s_per_m);
+  params.particle_count = cfg.particle_count;
+  model::CatheterSetup setup;
+  setup.start_position_m = to_vec3(cfg.start_m);
+  setup.direction = to_vec3(cfg.direction);
+  setup.haptic_period_s = period_s;
+  setup.max_substeps = cfg.max_substeps;
+  return model::Catheter::create(params, setup, arena);
+}
+
+// The runtime settings of a tensor model from its definition: contact capacity and the
+// quasi-non-linear maps, each checked (monotone, c0 = 0) with the definition file named.
+core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDefinition& definition) {
+  const config::TensorConfig& tensor = definition.tensor;
+  model::TensorSettings settings;
+  settings.max_contacts = tensor.max_contacts;
+  const auto map = [&](const config::AmplitudeMapConfig& cfg, const char* name,
+                       model::AmplitudeMap& out) -> core::Expected<void> {
+    if (cfg.max_amplitude == 0.0) return {};  // not configured: identity
+    std::string what = definition.source_path.string();
+    what.append(": [nonlinear.").append(name).append("]");
+    auto created = model::AmplitudeMap::create(cfg.coefficients, cfg.max_amplitude, what);
+    if (!created) return std::move(created).error();
+    out = created.value();
+    return {};
+  };
+  if (auto ok = map(tensor.displacement_colinear, "displacement_colinear",
+                    settings.nonlinear.displacement_colinear); !ok) {
+    return std::move(ok).error();
+  }
+  if (auto ok = map(tensor.displacement_orthogonal, "displacement_orthogonal",
+                    settings.nonlinear.displacement_orthogonal); !ok) {
+    return std::move(ok).error();
+  }
+  if (auto ok = map(tensor.force_colinear, "force_colinear", settings.nonlinear.force_colinear);
+      !ok) {
+    return std::move(ok).error();
+  }
+  if (auto ok = map(tensor.force_orthogonal, "force_orthogonal",
+                    settings.nonlinear.force_orthogonal); !ok) {
+    return std::move(ok).error();
+  }
+  return settings;
+}
+
+// What the report says of a model loaded from an image, whatever its kind.
+LoadedModelInfo image_model_info(const config::SceneModelConfig& entry,
+                                 const config::ModelDefinition& definition,
+                                 const model::ModelImage& image, std::size_t arena_bytes) {
+  LoadedModelInfo info;
+  info.name = entry.name;
+  info.kind = definition.kind;
+  info.definition_path = definition.source_path.string();
+  info.arena_bytes = arena_bytes;
+  info.image_path = definition.image_path.string();
+  info.image_checksum = image.checksum();
+  info.image_bytes = image.bytes().size();
+  info.node_count = image.metadata().node_count;
+  info.prepared_time_step_s = image.metadata().time_step_s;
+  return info;
+}
+
 }  // namespace
 
 HapticApp::HapticApp(core::LogRing& log, core::TripleBuffer<TelemetrySnapshot>& telemetry,
@@ -131,8 +205,62 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     return core::make_error(where + ": at most " + std::to_string(kMaxModels) +
                             " models, the scene has " + std::to_string(scene.models.size()));
   }
+  app->catheter_period_s_ = static_cast<float>(static_cast<double>(scene.loop.period_ns) * 1e-9);
   for (const config::SceneModelConfig& entry : scene.models) {
     const config::ModelDefinition& definition = entry.definition;
+    const std::size_t arena_before = arena.used_bytes();
+    if (definition.kind == config::ModelKind::catheter) {
+      auto created = create_catheter(definition.catheter, app->catheter_period_s_, arena);
+      if (!created) {
+        return core::make_error(where + ": model '" + entry.name + "' (" +
+                                definition.source_path.string() + "): " + created.error().message);
+      }
+      CatheterState& state = app->catheters_[app->catheter_count_++];
+      state.catheter.emplace(std::move(*created));
+      state.catheter->clamp_start(definition.catheter.hold_start);
+      const Vec3 gravity = to_vec3(definition.catheter.gravity_m_per_s2);
+      state.gravity_force_n = state.catheter->particle_mass_kg() * gravity;
+      state.has_gravity = !gravity.isZero(0.0F);
+      state.name = entry.name;
+      LoadedModelInfo info;
+      info.name = entry.name;
+      info.kind = config::ModelKind::catheter;
+      info.definition_path = definition.source_path.string();
+      info.arena_bytes = arena.used_bytes() - arena_before;
+      info.particle_count = state.catheter->particle_count();
+      info.stable_substep_s = static_cast<double>(state.catheter->stable_substep_s());
+      info.substeps_per_period = state.catheter->substeps_per_period();
+      info.max_substeps = definition.catheter.max_substeps;
+      info.hold_start = definition.catheter.hold_start;
+      app->model_info_.push_back(std::move(info));
+      continue;
+    }
+    if (definition.kind == config::ModelKind::tet_tensor) {
+      const std::string image_name = definition.image_path.string();
+      auto settings = tensor_settings_from(definition);
+      if (!settings) return core::make_error(where + ": model '" + entry.name + "': " +
+                                             settings.error().message);
+      auto image = model::load_model_image(definition.image_path, arena, model::ImageLimits{},
+                                           model::ModelKind::tet_tensor);
+      if (!image) {
+        return core::make_error(where + ": model '" + entry.name + "': " + image.error().message +
+                                " (build it with: modelc build --scene " + where + ")");
+      }
+      auto tensor = model::TensorModel::create(model::tensor_model_data(*image), *settings, arena);
+      if (!tensor) {
+        return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
+                                "): " + tensor.error().message);
+      }
+      app->tensor_models_[app->tensor_model_count_++].emplace(std::move(*tensor));
+      const model::ImageMetadataV1& metadata = image->metadata();
+      LoadedModelInfo info = image_model_info(entry, definition, *image, arena.used_bytes() - arena_before);
+      info.contact_node_count = metadata.surface_node_count;
+      info.stored_node_count = image->rows(model::SectionId::tensor_nodes);
+      info.max_contacts = settings->max_contacts;
+      info.quasi_nonlinear = definition.tensor.nonlinear;
+      app->model_info_.push_back(std::move(info));
+      continue;
+    }
     const std::string image_name = definition.image_path.string();
     auto image = model::load_model_image(definition.image_path, arena, model::ImageLimits{},
                                          model::ModelKind::modal_shell);
@@ -151,9 +279,10 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
                               "): " + modal.error().message);
     }
     app->modal_models_[app->modal_model_count_++].emplace(std::move(*modal));
-    app->model_info_.push_back({entry.name, image_name, image->checksum(), image->bytes().size(),
-                                metadata.node_count, metadata.mode_count,
-                                metadata.static_correction != 0, metadata.time_step_s});
+    LoadedModelInfo info = image_model_info(entry, definition, *image, arena.used_bytes() - arena_before);
+    info.mode_count = metadata.mode_count;
+    info.static_correction = metadata.static_correction != 0;
+    app->model_info_.push_back(std::move(info));
   }
   return app;
 }
@@ -340,6 +469,19 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   for (std::size_t m = 0; m < modal_model_count_; ++m) {
     if (!modal_models_[m]->step().is_ok()) ++stats_.model_step_errors;
   }
+  for (std::size_t c = 0; c < catheter_count_; ++c) {
+    CatheterState& state = catheters_[c];
+    model::Catheter& catheter = *state.catheter;
+    catheter.clear_forces();
+    bool ok = true;
+    if (state.has_gravity) {
+      for (std::uint32_t i = 0; i < catheter.particle_count(); ++i) {
+        ok = catheter.add_force(i, state.gravity_force_n).is_ok() && ok;
+      }
+    }
+    ok = catheter.step(catheter_period_s_).is_ok() && ok;
+    if (!ok) ++stats_.model_step_errors;
+  }
 
   const bool armed = safety_.armed();
   if (armed) ++stats_.armed_cycles;
@@ -360,6 +502,15 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   publish(timing);
   return encoders_ok ? core::Status::ok()
                      : core::Status{core::StatusCode::io_error, "encoder read failed"};
+}
+
+std::vector<std::array<float, 3>> HapticApp::catheter_positions_m(const std::string& name) const {
+  std::vector<std::array<float, 3>> positions;
+  for (std::size_t c = 0; c < catheter_count_; ++c) {
+    if (catheters_[c].name != name) continue;
+    for (const Vec3& p : catheters_[c].catheter->positions_m()) positions.push_back({p.x(), p.y(), p.z()});
+  }
+  return positions;
 }
 
 void HapticApp::on_overrun_fault(std::uint32_t streak) noexcept {

@@ -25,6 +25,12 @@ std::string microseconds(std::int64_t ns) {
   return buffer;
 }
 
+std::string microseconds_of_seconds(double seconds) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.2f", seconds * 1e6);
+  return buffer;
+}
+
 std::string latency_line(const char* label, const core::LatencyHistogram& h) {
   return std::string(label) + " p50 " + microseconds(h.percentile_ns(0.5)) + "  p99 " +
          microseconds(h.percentile_ns(0.99)) + "  p99.9 " + microseconds(h.percentile_ns(0.999)) +
@@ -54,7 +60,42 @@ nlohmann::json report_json(const RunResult& r) {
   }
   nlohmann::json models = nlohmann::json::array();
   for (const LoadedModelInfo& m : r.models) {
+    if (m.kind == config::ModelKind::catheter) {
+      nlohmann::json entry = {{"name", m.name},
+                              {"kind", "catheter"},
+                              {"definition", m.definition_path},
+                              {"arena_bytes", m.arena_bytes},
+                              {"particle_count", m.particle_count},
+                              {"stable_substep_s", m.stable_substep_s},
+                              {"substeps_per_period", m.substeps_per_period},
+                              {"max_substeps", m.max_substeps},
+                              {"hold_start", m.hold_start}};
+      if (!m.final_positions_m.empty()) {
+        entry["final_root_position_m"] = m.final_positions_m.front();
+        entry["final_tip_position_m"] = m.final_positions_m.back();
+      }
+      models.push_back(std::move(entry));
+      continue;
+    }
+    if (m.kind == config::ModelKind::tet_tensor) {
+      models.push_back({{"name", m.name},
+                        {"kind", "tet_tensor"},
+                        {"definition", m.definition_path},
+                        {"arena_bytes", m.arena_bytes},
+                        {"image", m.image_path},
+                        {"image_checksum", m.image_checksum},
+                        {"image_bytes", m.image_bytes},
+                        {"node_count", m.node_count},
+                        {"contact_node_count", m.contact_node_count},
+                        {"stored_node_count", m.stored_node_count},
+                        {"max_contacts", m.max_contacts},
+                        {"quasi_nonlinear", m.quasi_nonlinear}});
+      continue;
+    }
     models.push_back({{"name", m.name},
+                      {"kind", "modal_shell"},
+                      {"definition", m.definition_path},
+                      {"arena_bytes", m.arena_bytes},
                       {"image", m.image_path},
                       {"image_checksum", m.image_checksum},
                       {"image_bytes", m.image_bytes},
@@ -152,9 +193,25 @@ std::string report_summary(const RunResult& r) {
         << s.contact_cycles << "\n";
   }
   for (const LoadedModelInfo& m : r.models) {
+    if (m.kind == config::ModelKind::catheter) {
+      out << "  model '" << m.name << "': catheter, " << m.particle_count
+          << " particles, stable step " << microseconds_of_seconds(m.stable_substep_s) << " us, "
+          << m.substeps_per_period << " substeps per " << microseconds(r.period_ns)
+          << " us period (budget " << m.max_substeps << "), "
+          << (m.hold_start ? "held at the introducer" : "free start") << ", arena "
+          << m.arena_bytes << " bytes\n";
+      continue;
+    }
+    if (m.kind == config::ModelKind::tet_tensor) {
+      out << "  model '" << m.name << "': tensor model, " << m.node_count << " nodes, "
+          << m.contact_node_count << " contact nodes, up to " << m.max_contacts
+          << " contacts, quasi-non-linear " << (m.quasi_nonlinear ? "on" : "off") << ", image "
+          << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
+      continue;
+    }
     out << "  model '" << m.name << "': " << m.node_count << " nodes, " << m.mode_count
         << " modes, static correction " << (m.static_correction ? "on" : "off") << ", image "
-        << m.image_bytes << " bytes\n";
+        << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
   }
   out << "  safety: armed " << r.arm_count << " time(s), armed cycles " << r.app.armed_cycles;
   if (r.fault_counts.empty()) {

@@ -201,6 +201,11 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   result.loop = periodic.stats();
   result.app = haptic.stats();
   result.models = haptic.models();
+  for (LoadedModelInfo& model : result.models) {
+    if (model.kind == config::ModelKind::catheter) {
+      model.final_positions_m = haptic.catheter_positions_m(model.name);
+    }
+  }
   const safety::SafetySupervisor& safety = haptic.safety();
   result.force_clamped_cycles = safety.clamped_cycles();
   result.force_slew_limited_cycles = safety.slew_limited_cycles();

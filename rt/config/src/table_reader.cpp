@@ -405,6 +405,12 @@ Vec3 TableReader::required_vec3(std::string_view key, RealRange component_range,
   return read_vec3(key, component_range, unit).value_or(Vec3{});
 }
 
+Vec3 TableReader::optional_vec3(std::string_view key, const Vec3& fallback,
+                                RealRange component_range, std::string_view unit) {
+  if (find(key) == nullptr) return fallback;
+  return read_vec3(key, component_range, unit).value_or(fallback);
+}
+
 Vec3 TableReader::required_direction(std::string_view key) {
   // Components are bounded so the length cannot overflow; only the direction matters.
   constexpr RealRange kComponentRange = RealRange::closed(-1e6, 1e6);
@@ -420,6 +426,38 @@ Vec3 TableReader::required_direction(std::string_view key) {
   }
   for (double& component : vector) component /= length;
   return vector;
+}
+
+std::vector<double> TableReader::required_double_array(std::string_view key,
+                                                      std::size_t min_count,
+                                                      std::size_t max_count,
+                                                      RealRange element_range,
+                                                      std::string_view unit) {
+  const std::string expected_text =
+      "an array of " + count_range_text(min_count, max_count) + " numbers" + with_unit(unit);
+  const toml::node* node = find(key);
+  if (node == nullptr) {
+    fail_missing(key, expected_text);
+    return {};
+  }
+  const auto* array = node->as_array();
+  if (array == nullptr) {
+    fail_type(qualified(key), *node, expected_text);
+    return {};
+  }
+  if (array->size() < min_count || array->size() > max_count) {
+    fail_at_node(qualified(key), *node,
+                 " has " + std::to_string(array->size()) + " elements: expected " + expected_text);
+    return {};
+  }
+  std::vector<double> values;
+  for (std::size_t i = 0; i < array->size(); ++i) {
+    const auto value = check_real(qualified(key) + "[" + std::to_string(i) + "]", *array->get(i),
+                                  element_range, unit);
+    if (!value) return {};
+    values.push_back(*value);
+  }
+  return values;
 }
 
 std::optional<std::vector<StringItem>> TableReader::optional_string_array(

@@ -137,8 +137,15 @@ class TableReader {
 
   // Three numbers, each finite and within `component_range`.
   Vec3 required_vec3(std::string_view key, RealRange component_range, std::string_view unit);
+  // The same, or `fallback` when the key is absent.
+  Vec3 optional_vec3(std::string_view key, const Vec3& fallback, RealRange component_range,
+                     std::string_view unit);
   // Three numbers with length >= kMinDirectionLength, returned normalised to unit length.
   Vec3 required_direction(std::string_view key);
+  // An array of min_count..max_count numbers, each in `element_range`.
+  std::vector<double> required_double_array(std::string_view key, std::size_t min_count,
+                                            std::size_t max_count, RealRange element_range,
+                                            std::string_view unit);
   static constexpr double kMinDirectionLength = 1e-9;
 
   // An array of non-empty strings, at most `max_count`; nullopt when the key is absent.

@@ -258,18 +258,59 @@ TEST_F(ModelImageLoad, CountingDetectsAnAllocatingErrorPath) {
 }
 
 TEST_F(ModelImageLoad, MinimalTetTensorImageLoads) {
-  ImageMetadataV1 metadata = test::SmallModalShell().metadata;
-  metadata.element_type = static_cast<std::uint32_t>(FiniteElementType::tet4);
-  metadata.static_correction = 0;
-  const std::vector<float> displacement{1.0F, 2.0F, 3.0F, 4.0F};
-  auto loaded = load_bytes(
-      build_raw_image(ModelKind::tet_tensor,
-                      {raw_metadata(metadata), raw_section(SectionId::tensor_displacement,
-                                                           ElementType::f32, 2, 2, displacement)}),
-      ModelKind::tet_tensor);
+  const test::SmallTetTensor tet;
+  const auto flat = [](const Eigen::MatrixXd& m) {
+    std::vector<float> values;
+    for (Eigen::Index r = 0; r < m.rows(); ++r) {
+      for (Eigen::Index c = 0; c < m.cols(); ++c) values.push_back(static_cast<float>(m(r, c)));
+    }
+    return values;
+  };
+  std::vector<std::uint32_t> triangles;
+  for (Eigen::Index r = 0; r < tet.triangles.rows(); ++r) {
+    for (Eigen::Index c = 0; c < 3; ++c) triangles.push_back(static_cast<std::uint32_t>(tet.triangles(r, c)));
+  }
+  std::vector<float> force(tet.force_tensor.begin(), tet.force_tensor.end());
+  std::vector<RawSection> sections{
+      raw_metadata(tet.metadata),
+      raw_section(SectionId::rest_positions, ElementType::f32, 4, 3, flat(tet.rest_positions_m)),
+      raw_section(SectionId::triangles, ElementType::u32, 4, 3, triangles),
+      raw_section(SectionId::fixed_nodes, ElementType::u32, 1, 1, tet.fixed_nodes),
+      raw_section(SectionId::surface_nodes, ElementType::u32, 1, 1, tet.contact_nodes),
+      raw_section(SectionId::tensor_nodes, ElementType::u32, 3, 1, tet.stored_nodes),
+      raw_section(SectionId::tensor_displacement, ElementType::f32, 3, 9,
+                  flat(tet.displacement_tensors)),
+      raw_section(SectionId::tensor_force, ElementType::f32, 1, 9, force)};
+  auto loaded = load_bytes(build_raw_image(ModelKind::tet_tensor, sections), ModelKind::tet_tensor);
   ASSERT_TRUE(loaded) << loaded.error().message;
   EXPECT_EQ(loaded.value().model_kind(), ModelKind::tet_tensor);
-  EXPECT_EQ(loaded.value().floats(SectionId::tensor_displacement)[3], 4.0F);
+  EXPECT_EQ(loaded.value().floats(SectionId::tensor_displacement)[3], 0.04F);
+
+  // Each tet_tensor consistency rule, broken one at a time in an otherwise valid image.
+  const auto refused = [&](std::vector<RawSection> broken, const std::string& expected) {
+    auto result = load_bytes(build_raw_image(ModelKind::tet_tensor, broken), ModelKind::tet_tensor);
+    ASSERT_FALSE(result);
+    EXPECT_NE(result.error().message.find(expected), std::string::npos) << result.error().message;
+  };
+  std::vector<RawSection> without_force(sections.begin(), sections.end() - 1);
+  refused(without_force, "a tet_tensor image needs section 'tensor_force'");
+  std::vector<RawSection> not_stored = sections;
+  not_stored[5] = raw_section(SectionId::tensor_nodes, ElementType::u32, 3, 1,
+                              std::vector<std::uint32_t>{0, 1, 2});
+  refused(not_stored, "surface node 3 (entry 0) is not in section 'tensor_nodes'");
+  std::vector<RawSection> asymmetric = sections;
+  std::vector<float> skew = force;
+  skew[1] = 30.0F;
+  asymmetric[7] = raw_section(SectionId::tensor_force, ElementType::f32, 1, 9, skew);
+  refused(asymmetric, "'tensor_force' contact 0 is not symmetric");
+  std::vector<RawSection> short_tensors = sections;
+  short_tensors[6] = raw_section(SectionId::tensor_displacement, ElementType::f32, 2, 9,
+                                 std::vector<float>(18, 0.0F));
+  refused(short_tensors, "'tensor_displacement' has 2 rows, expected 3");
+  std::vector<RawSection> wrong_columns = sections;
+  wrong_columns[6] = raw_section(SectionId::tensor_displacement, ElementType::f32, 9, 3,
+                                 flat(tet.displacement_tensors));
+  refused(wrong_columns, "the format requires 9");
 }
 
 TEST_F(ModelImageLoad, EmptySectionsAreAllowed) {

@@ -163,6 +163,34 @@ inline void put_entry(std::vector<std::byte>& bytes, SectionId id, const Section
   put(bytes, entry_position(bytes, id), entry);
 }
 
+// The smallest consistent tet_tensor image: one tetrahedron (nodes 0..3), node 0 fixed, node 3
+// the only contact node, responses stored for nodes 1..3. T(1,3) and T(2,3) are arbitrary,
+// T(3,3) = I as the format requires, F(3) symmetric positive.
+struct SmallTetTensor {
+  Eigen::MatrixXd rest_positions_m{{0.0, 0.0, 0.0}, {0.01, 0.0, 0.0}, {0.0, 0.01, 0.0},
+                                   {0.0, 0.0, 0.01}};
+  Eigen::MatrixXi triangles{{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  std::vector<std::uint32_t> fixed_nodes{0};
+  std::vector<std::uint32_t> contact_nodes{3};
+  std::vector<std::uint32_t> stored_nodes{1, 2, 3};
+  // 3 × 9: one row per stored node, T row-major.
+  Eigen::MatrixXd displacement_tensors{{0.11, 0.02, 0.03, 0.04, 0.15, 0.06, 0.07, 0.08, 0.19},
+                                       {0.21, 0.01, 0.0, 0.0, 0.22, 0.01, 0.02, 0.0, 0.23},
+                                       {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}};
+  std::vector<double> force_tensor{120.0, 3.0, 1.0, 3.0, 110.0, 2.0, 1.0, 2.0, 130.0};
+  ImageMetadataV1 metadata{};
+
+  SmallTetTensor() {
+    metadata = offline::make_metadata();
+    metadata.young_modulus_pa = 1.5e4;
+    metadata.poisson_ratio = 0.45;
+    metadata.density_kg_per_m3 = 1060.0;
+    metadata.element_type = static_cast<std::uint32_t>(FiniteElementType::tet4);
+    metadata.node_count = 4;
+    metadata.surface_node_count = 1;
+  }
+};
+
 // ---- independent raw image builder ----
 
 struct RawSection {

@@ -217,30 +217,38 @@ TEST(ImageWriter, OutputDoesNotDependOnTheOrderSectionsWereAdded) {
 }
 
 TEST(ImageWriter, EigenInputOfAnyStorageOrderIsWrittenRowMajor) {
-  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> row_major(2, 3);
-  row_major << 1, 2, 3, 4, 5, 6;
-  Eigen::MatrixXd column_major(3, 2);
-  column_major << 1, 2, 3, 4, 5, 6;
+  // A complete (smallest) tet_tensor image whose 3 × 9 displacement tensors are given once as a
+  // row-major float matrix and once as the transpose of a column-major double matrix.
+  const test::SmallTetTensor tet;
+  const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> row_major =
+      tet.displacement_tensors.cast<float>();
+  const Eigen::MatrixXd column_major = tet.displacement_tensors.transpose();  // 9 × 3
   for (int variant = 0; variant < 2; ++variant) {
     ImageWriter writer(ModelKind::tet_tensor);
-    ImageMetadataV1 metadata = make_metadata();
-    metadata.element_type = static_cast<std::uint32_t>(FiniteElementType::tet4);
-    writer.set_metadata(metadata);
-    const auto added = variant == 0
-                           ? writer.add_f32(SectionId::tensor_force, row_major)
-                           : writer.add_f32(SectionId::tensor_force, column_major.transpose());
+    writer.set_metadata(tet.metadata);
+    ASSERT_TRUE(writer.add_f32(SectionId::rest_positions, tet.rest_positions_m));
+    ASSERT_TRUE(writer.add_u32(SectionId::triangles, tet.triangles));
+    ASSERT_TRUE(writer.add_u32(SectionId::fixed_nodes, tet.fixed_nodes, 1, 1));
+    ASSERT_TRUE(writer.add_u32(SectionId::surface_nodes, tet.contact_nodes, 1, 1));
+    ASSERT_TRUE(writer.add_u32(SectionId::tensor_nodes, tet.stored_nodes, 3, 1));
+    ASSERT_TRUE(writer.add_f32(SectionId::tensor_force, std::span<const double>(tet.force_tensor), 1, 9));
+    const auto added =
+        variant == 0 ? writer.add_f32(SectionId::tensor_displacement, row_major)
+                     : writer.add_f32(SectionId::tensor_displacement, column_major.transpose());
     ASSERT_TRUE(added) << added.error().message;
     auto bytes = writer.serialize();
     ASSERT_TRUE(bytes) << bytes.error().message;
-    const auto entry = test::entry_of(bytes.value(), SectionId::tensor_force);
-    EXPECT_EQ(entry.rows, 2U);
-    EXPECT_EQ(entry.cols, 3U);
-    // (row, col) at row * cols + col: 1 3 5 / 2 4 6 for the transposed column-major input.
-    const std::vector<float> expected =
-        variant == 0 ? std::vector<float>{1, 2, 3, 4, 5, 6} : std::vector<float>{1, 3, 5, 2, 4, 6};
-    for (std::size_t i = 0; i < 6; ++i) {
-      EXPECT_EQ(get<float>(bytes.value(), entry.offset + i * sizeof(float)), expected[i])
-          << "variant " << variant << " element " << i;
+    const auto entry = test::entry_of(bytes.value(), SectionId::tensor_displacement);
+    EXPECT_EQ(entry.rows, 3U);
+    EXPECT_EQ(entry.cols, 9U);
+    // (row, col) at row * cols + col whatever the input's storage order.
+    for (Eigen::Index r = 0; r < 3; ++r) {
+      for (Eigen::Index c = 0; c < 9; ++c) {
+        EXPECT_EQ(get<float>(bytes.value(), entry.offset + static_cast<std::size_t>(r * 9 + c) *
+                                                                sizeof(float)),
+                  static_cast<float>(tet.displacement_tensors(r, c)))
+            << "variant " << variant << " element " << r << "," << c;
+      }
     }
   }
 }

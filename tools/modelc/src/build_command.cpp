@@ -1,6 +1,9 @@
 #include "build_command.hpp"
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <numeric>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -15,6 +18,8 @@
 #include "model_spec.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/model_offline/modal_accuracy.hpp"
+#include "trainer/model_offline/tensor_build.hpp"
+#include "trainer/model_offline/tet_mesh_generators.hpp"
 
 namespace trainer::tools::modelc {
 
@@ -42,6 +47,114 @@ void write_json(const std::string& path, const nlohmann::json& json) {
   std::cout << "report: " << path << "\n";
 }
 
+// Cotin's tensor model: assemble, factorise once, precompute the tensors of every contact
+// node, write the image, then check the float32 runtime against a direct solve.
+nlohmann::json build_tensor_model(const std::string& name,
+                                  const config::ModelDefinition& definition) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::string where = definition.source_path.string() + ": ";
+  const offline::TetMesh mesh = value_or_throw(tet_mesh_from(definition));
+  const std::vector<offline::TetNodeFix> fixes = value_or_throw(tet_fixes_from(definition, mesh));
+  const offline::TetMaterial material{definition.material.young_modulus_pa,
+                                      definition.material.poisson_ratio,
+                                      definition.material.density_kg_per_m3};
+  const auto assembly_start = std::chrono::steady_clock::now();
+  const offline::AssembledTet assembled =
+      value_or_throw(offline::assemble_tet(mesh, material, fixes));
+  const double assembly_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - assembly_start).count();
+  const offline::TetStaticSolver solver = value_or_throw(offline::TetStaticSolver::create(assembled));
+  const std::vector<int> fixed_nodes = offline::partly_fixed_nodes(assembled.dofs);
+
+  const config::TensorConfig& tensor = definition.tensor;
+  const auto contact_set = mesh.node_sets.find(tensor.contact_set);
+  if (contact_set == mesh.node_sets.end()) {
+    throw std::runtime_error(where + "[tensor] contact_set '" + tensor.contact_set +
+                             "' is not a node set of the mesh");
+  }
+  const auto sorted_unique = [](std::vector<int> nodes) {
+    std::sort(nodes.begin(), nodes.end());
+    nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+    return nodes;
+  };
+  offline::TensorPrecomputeOptions options;
+  // A node fixed on any axis cannot be displaced by a tool: it is not a contact node.
+  const std::vector<int> candidates = sorted_unique(contact_set->second);
+  std::set_difference(candidates.begin(), candidates.end(), fixed_nodes.begin(), fixed_nodes.end(),
+                      std::back_inserter(options.contact_nodes));
+  if (options.contact_nodes.empty()) {
+    throw std::runtime_error(where + "[tensor] contact_set '" + tensor.contact_set +
+                             "' has no node free on all three axes");
+  }
+  if (tensor.stored == config::TensorStorage::all) {
+    options.response_nodes.resize(static_cast<std::size_t>(mesh.nodes.rows()));
+    std::iota(options.response_nodes.begin(), options.response_nodes.end(), 0);
+  } else {
+    std::vector<int> stored = sorted_unique(mesh.node_sets.at("surface"));
+    stored.insert(stored.end(), options.contact_nodes.begin(), options.contact_nodes.end());
+    options.response_nodes = sorted_unique(std::move(stored));
+  }
+  const offline::TensorPrecompute tensors =
+      value_or_throw(offline::precompute_tensors(assembled, solver, options));
+  offline::TensorImageInputs inputs;
+  inputs.mesh = &mesh;
+  inputs.boundary_triangles = offline::boundary_triangles(mesh);
+  inputs.material = material;
+  inputs.fixed_nodes = fixed_nodes;
+  inputs.time_step_s = tensor.time_step_s;
+  const std::vector<std::byte> bytes = value_or_throw(offline::serialize_tensor_image(inputs, tensors));
+  std::filesystem::create_directories(definition.image_path.parent_path());
+  if (auto written = offline::write_tensor_image(definition.image_path, inputs, tensors); !written) {
+    throw std::runtime_error(written.error().message);
+  }
+  const double total_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const auto image_bytes = std::filesystem::file_size(definition.image_path);
+  const std::vector<offline::TensorAgreement> agreement = value_or_throw(
+      offline::measure_tensor_agreement(mesh, assembled, bytes, tensor.max_contacts));
+
+  std::cout << "model '" << name << "': " << mesh.nodes.rows() << " nodes, "
+            << mesh.tetrahedra.rows() << " tetrahedra, " << assembled.dofs.free_count
+            << " free dofs, " << tensors.contact_nodes.size() << " contact nodes, "
+            << tensors.response_nodes.size() << " stored nodes\n"
+            << "  built in " << fixed(total_s, 3) << " s (assembly " << fixed(assembly_s, 3)
+            << ", factorisation " << fixed(solver.factorization_time_s(), 3) << ", tensors "
+            << fixed(tensors.solve_time_s, 3) << "); T(k,k) = I to "
+            << tensors.self_tensor_error << "\n  image " << definition.image_path.string() << " ("
+            << image_bytes << " bytes)\n";
+  nlohmann::json checks = nlohmann::json::array();
+  for (const offline::TensorAgreement& a : agreement) {
+    std::cout << "  vs direct solve, " << a.contact_count << " contact"
+              << (a.contact_count == 1 ? "" : "s") << ": displacement error "
+              << a.displacement_error << ", force error " << a.force_error << " (of max), tensor "
+              << fixed(a.tensor_solve_us, 1) << " us vs direct " << fixed(1e3 * a.direct_solve_s, 1)
+              << " ms\n";
+    checks.push_back({{"contacts", a.contact_count},
+                      {"displacement_error", a.displacement_error},
+                      {"force_error", a.force_error},
+                      {"tensor_solve_us", a.tensor_solve_us},
+                      {"direct_solve_s", a.direct_solve_s}});
+  }
+  return {{"name", name},
+          {"definition", definition.source_path.string()},
+          {"kind", "tet_tensor"},
+          {"built", true},
+          {"image", definition.image_path.string()},
+          {"image_bytes", image_bytes},
+          {"node_count", mesh.nodes.rows()},
+          {"tetrahedron_count", mesh.tetrahedra.rows()},
+          {"free_dofs", assembled.dofs.free_count},
+          {"contact_node_count", tensors.contact_nodes.size()},
+          {"stored_node_count", tensors.response_nodes.size()},
+          {"self_tensor_error", tensors.self_tensor_error},
+          {"timings_s",
+           {{"assembly", assembly_s},
+            {"factorization", solver.factorization_time_s()},
+            {"tensors", tensors.solve_time_s},
+            {"total", total_s}}},
+          {"agreement_with_direct_solve", checks}};
+}
+
 struct BuildOptions {
   std::string scene_path;
   std::string only;
@@ -57,6 +170,20 @@ void run_build(const BuildOptions& options) {
   for (const config::SceneModelConfig& entry : scene.models) {
     if (!options.only.empty() && entry.name != options.only) continue;
     const config::ModelDefinition& definition = entry.definition;
+    if (definition.kind == config::ModelKind::catheter) {
+      // The particle catheter is built by the trainer from its parameters at start.
+      std::cout << "model '" << entry.name << "': catheter, nothing to build ("
+                << definition.source_path.string() << ")\n";
+      report["models"].push_back({{"name", entry.name},
+                                  {"definition", definition.source_path.string()},
+                                  {"kind", "catheter"},
+                                  {"built", false}});
+      continue;
+    }
+    if (definition.kind == config::ModelKind::tet_tensor) {
+      report["models"].push_back(build_tensor_model(entry.name, definition));
+      continue;
+    }
     const offline::ModalBuildSpec spec = value_or_throw(modal_spec_from(definition));
     const offline::ModalBuildResult built = value_or_throw(offline::build_modal_model(spec));
     std::filesystem::create_directories(definition.image_path.parent_path());
@@ -120,6 +247,13 @@ struct AccuracyOptions {
 void run_accuracy(const AccuracyOptions& options) {
   const config::ModelDefinition definition =
       value_or_throw(config::load_model_definition(options.model_path));
+  if (definition.kind != config::ModelKind::modal_shell) {
+    throw std::runtime_error(options.model_path +
+                             ": `modelc accuracy` compares a modal_shell model with DNIOS; a " +
+                             (definition.kind == config::ModelKind::catheter ? "catheter" : "tet_tensor") +
+                             " model is checked by `modelc build` (tet_tensor: tensor vs direct "
+                             "solve in its report) and `modelc catheter-static`");
+  }
   offline::ModalBuildSpec spec = value_or_throw(modal_spec_from(definition));
   spec.static_correction = true;  // measure both: the residual is needed for "with"
   // One build per r, as an image of that size would be (its residual belongs to its r modes).

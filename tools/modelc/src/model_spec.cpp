@@ -2,6 +2,10 @@
 
 #include "trainer/model_offline/gmsh_reader.hpp"
 #include "trainer/model_offline/mesh_generators.hpp"
+#include "trainer/model_offline/tet_mesh_generators.hpp"
+
+#include <algorithm>
+#include <set>
 
 namespace trainer::tools::modelc {
 
@@ -39,6 +43,59 @@ core::Expected<offline::ModalBuildSpec> modal_spec_from(const config::ModelDefin
   spec.static_correction = definition.modal.static_correction;
   spec.surface_set = definition.modal.surface_set;
   return spec;
+}
+
+core::Expected<offline::TetMesh> tet_mesh_from(const config::ModelDefinition& definition) {
+  const std::string where = definition.source_path.string() + ": ";
+  core::Expected<offline::TetMesh> mesh = core::make_error("no mesh");
+  switch (definition.mesh_source) {
+    case config::MeshSource::box:
+      mesh = offline::make_tet_box(definition.box.size_m[0], definition.box.size_m[1],
+                                   definition.box.size_m[2], definition.box.divisions[0],
+                                   definition.box.divisions[1], definition.box.divisions[2]);
+      break;
+    case config::MeshSource::cylinder:
+      mesh = offline::make_tet_cylinder(definition.cylinder.radius_m, definition.cylinder.height_m,
+                                        definition.cylinder.radial, definition.cylinder.axial);
+      break;
+    case config::MeshSource::gmsh:
+      mesh = offline::read_gmsh_tet(definition.mesh_file.string());
+      break;
+    case config::MeshSource::tube:
+      return core::make_error(where + "a tet_tensor model needs a solid mesh (box, cylinder or gmsh)");
+  }
+  if (!mesh) return core::make_error(where + mesh.error().message);
+  if (auto valid = offline::validate_tet_mesh(*mesh); !valid) {
+    return core::make_error(where + valid.error().message);
+  }
+  if (mesh->node_sets.find("surface") == mesh->node_sets.end()) {
+    const auto faces = offline::boundary_triangles(*mesh);
+    std::set<int> boundary(faces.data(), faces.data() + faces.size());
+    mesh->node_sets["surface"] = std::vector<int>(boundary.begin(), boundary.end());
+  }
+  return mesh;
+}
+
+core::Expected<std::vector<offline::TetNodeFix>> tet_fixes_from(
+    const config::ModelDefinition& definition, const offline::TetMesh& mesh) {
+  std::vector<offline::TetNodeFix> fixes;
+  for (const config::DofFixConfig& fix : definition.fixes) {
+    const auto found = mesh.node_sets.find(fix.node_set);
+    if (found == mesh.node_sets.end()) {
+      std::string known;
+      for (const auto& [name, nodes] : mesh.node_sets) known += (known.empty() ? "" : ", ") + name;
+      return core::make_error(definition.source_path.string() + ": [[fix]] node_set '" +
+                              fix.node_set + "' is not a node set of the mesh (it has: " + known +
+                              ")");
+    }
+    offline::TetNodeFix entry;
+    entry.nodes = found->second;
+    std::sort(entry.nodes.begin(), entry.nodes.end());
+    entry.nodes.erase(std::unique(entry.nodes.begin(), entry.nodes.end()), entry.nodes.end());
+    for (const int dof : fix.dofs) entry.axes[static_cast<std::size_t>(dof)] = true;
+    fixes.push_back(std::move(entry));
+  }
+  return fixes;
 }
 
 }  // namespace trainer::tools::modelc

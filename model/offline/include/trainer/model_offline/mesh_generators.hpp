@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
 
 #include "trainer/core/expected.hpp"
 #include "trainer/model_offline/shell_model.hpp"
@@ -18,6 +19,11 @@ enum class TrianglePattern : std::uint8_t {
   right,        // every quad split along the same diagonal (corner (i,j) to (i+1,j+1))
   left,         // every quad split along the other diagonal (corner (i+1,j) to (i,j+1))
 };
+
+// The source_hash of a generated mesh: XXH64 of the generator's name and parameters, printed
+// as hexadecimal floats so any bit of any input changes it. Shared by the tet generators.
+std::uint64_t hash_generator_parameters(const char* generator, std::initializer_list<double> reals,
+                                        std::initializer_list<int> integers);
 
 // Cylinder of radius `radius_m` along +x from x = 0 to x = `length_m`: `rings` node rings
 // (≥ 2, including both ends) of `segments` nodes each (≥ 3), node (ring r, segment s) at

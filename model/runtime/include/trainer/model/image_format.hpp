@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <string_view>
 
 namespace trainer::model {
@@ -65,10 +66,16 @@ enum class SectionId : std::uint32_t {
   modal_damping = 22,        // f32, r × 1, 1/s: α_i in ẍ + α_i ẋ + ω_i² x = f, >= 0
   residual_compliance = 23,  // f32, 3s × 3s, m/N, symmetric, full storage, surface-node order
 
-  // Tetrahedral tensor model (30-49); their shape rules are defined with that model.
-  tensor_displacement = 30,  // f32
-  tensor_force = 31,         // f32
-  tensor_nodes = 32,         // u32
+  // Tetrahedral tensor model (30-49). It also uses rest_positions, triangles (its boundary
+  // faces), fixed_nodes and surface_nodes (the nodes a tool may displace: s "contact nodes").
+  // r = rows of tensor_nodes.
+  tensor_displacement = 30,  // f32, (s·r) × 9: row k·r + j = T(node tensor_nodes[j], contact k),
+                             // a 3×3 row-major, m/m: displacement of that node per unit
+                             // displacement imposed at contact node k (T(k, k) = I)
+  tensor_force = 31,         // f32, s × 9: F(k), 3×3 row-major, symmetric, N/m: force at contact
+                             // node k per unit displacement imposed there
+  tensor_nodes = 32,         // u32, r × 1, strictly increasing: the nodes whose response is stored
+                             // (the boundary, or every node); contains every surface node
 };
 
 // The fixed 128-byte header at offset 0. Plain little-endian record, read with memcpy.
@@ -143,18 +150,28 @@ struct SectionDescriptor {
   SectionId id;
   const char* name;          // snake_case, used in every message
   ElementType element_type;  // the only element type allowed for this id
-  // Model kind the section belongs to; metadata belongs to every kind (owner_any = true).
-  ModelKind owner;
-  bool owner_any;
+  // Model kinds the section may appear in: bit (1 << kind) per kind (owner_bit()). The
+  // metadata belongs to every kind; geometry and node lists are shared by both kinds.
+  std::uint32_t owners;
   // Column count the id fixes (lists have 1, positions and triangles 3); 0 = set by the model.
   std::uint32_t required_cols;
 };
+
+constexpr std::uint32_t owner_bit(ModelKind kind) noexcept {
+  return 1U << static_cast<std::uint32_t>(kind);
+}
+constexpr bool section_belongs_to(const SectionDescriptor& descriptor, ModelKind kind) noexcept {
+  return (descriptor.owners & owner_bit(kind)) != 0U;
+}
 
 // nullptr for an id this build does not know.
 const SectionDescriptor* find_section_descriptor(std::uint32_t id) noexcept;
 // "unknown" for an id this build does not know.
 const char* section_name(SectionId id) noexcept;
 const char* model_kind_name(ModelKind kind) noexcept;
+// The kinds a section belongs to, e.g. "modal_shell" or "modal_shell and tet_tensor" (for
+// error messages; allocates).
+std::string owners_text(const SectionDescriptor& descriptor);
 // Bytes per element; 0 for an unknown type.
 std::size_t element_type_bytes(std::uint32_t element_type) noexcept;
 bool is_known_model_kind(std::uint32_t kind) noexcept;

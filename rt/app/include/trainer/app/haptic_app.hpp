@@ -24,10 +24,13 @@
 #include "trainer/hal/joint_scale.hpp"
 #include "trainer/kinematics/trocar_kinematics.hpp"
 #include "trainer/loop/periodic_loop.hpp"
+#include "trainer/model/catheter.hpp"
 #include "trainer/model/image_loader.hpp"
 #include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model/rigid_contact.hpp"
+#include "trainer/model/tensor_image.hpp"
+#include "trainer/model/tensor_model.hpp"
 #include "trainer/safety/safety_supervisor.hpp"
 
 namespace trainer::app {
@@ -48,9 +51,13 @@ struct InstrumentStats {
   std::array<float, 5> peak_joint_effort{};
 };
 
-// A soft-tissue model the scene named, as loaded (for the report).
+// A model the scene named, as loaded (for the report).
 struct LoadedModelInfo {
   std::string name;
+  config::ModelKind kind = config::ModelKind::modal_shell;
+  std::string definition_path;
+  std::size_t arena_bytes = 0;  // what creating the model carved from the arena (image included)
+  // modal_shell
   std::string image_path;
   std::uint64_t image_checksum = 0;
   std::size_t image_bytes = 0;
@@ -58,6 +65,19 @@ struct LoadedModelInfo {
   std::uint32_t mode_count = 0;
   bool static_correction = false;
   double prepared_time_step_s = 0.0;
+  // tet_tensor (image fields above, node_count included)
+  std::uint32_t contact_node_count = 0;
+  std::uint32_t stored_node_count = 0;
+  std::uint32_t max_contacts = 0;
+  bool quasi_nonlinear = false;
+  // catheter
+  std::uint32_t particle_count = 0;
+  double stable_substep_s = 0.0;        // the largest stable substep (model::Catheter)
+  std::uint32_t substeps_per_period = 0;  // substeps one loop period costs
+  std::uint32_t max_substeps = 0;       // the budget from the definition
+  bool hold_start = false;
+  // Filled after the run (run_trainer): the catheter's particle positions when the loop ended.
+  std::vector<std::array<float, 3>> final_positions_m;
 };
 
 struct AppStats {
@@ -97,6 +117,9 @@ class HapticApp final : public loop::CycleTask {
   const safety::SafetySupervisor& safety() const noexcept { return safety_; }
   std::size_t instrument_count() const noexcept { return instruments_.size(); }
   const std::vector<LoadedModelInfo>& models() const noexcept { return model_info_; }
+  // Non-RT, after the loop stopped: the current particle positions of the catheter model
+  // named `name` (empty if the scene has no such catheter).
+  std::vector<std::array<float, 3>> catheter_positions_m(const std::string& name) const;
 
   HapticApp(const HapticApp&) = delete;
   HapticApp& operator=(const HapticApp&) = delete;
@@ -143,9 +166,21 @@ class HapticApp final : public loop::CycleTask {
   std::span<hal::ActuatorCommand> commands_;
   std::span<hal::ActuatorStatus> actuator_status_;
   std::span<InstrumentTelemetry> instrument_out_;
-  // Soft-tissue models the scene names, their data in the arena; stepped every cycle.
+  // Models the scene names (modal ducts, catheters), their data in the arena; stepped every cycle.
   std::array<std::optional<model::ModalModel>, kMaxModels> modal_models_{};
   std::size_t modal_model_count_ = 0;
+  struct CatheterState {
+    std::optional<model::Catheter> catheter;
+    Eigen::Vector3f gravity_force_n = Eigen::Vector3f::Zero();  // m·g on every particle
+    bool has_gravity = false;
+    std::string name;  // setup-time only
+  };
+  std::array<CatheterState, kMaxModels> catheters_{};
+  // Cotin tensor models (static: they change only when a contact is imposed).
+  std::array<std::optional<model::TensorModel>, kMaxModels> tensor_models_{};
+  std::size_t tensor_model_count_ = 0;
+  std::size_t catheter_count_ = 0;
+  float catheter_period_s_ = 0.0F;  // the loop period: each cycle advances the chain by it
   std::vector<LoadedModelInfo> model_info_;  // setup-time description, never touched in the cycle
 
   AppStats stats_{};

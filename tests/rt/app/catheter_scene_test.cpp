@@ -1,0 +1,219 @@
+// The catheter in the trainer: config/scenes/catheter.toml runs with the particle catheter
+// built in the arena and stepped every cycle (no heap after arming, held at its introducer);
+// gravity pulls it by m·g per particle (the early free fall matches the analytical damped fall,
+// then it hangs below its introducer, settled and unstretched); and a catheter that cannot be
+// stable within its max_substeps is refused at setup, naming the file and the substeps needed.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <string_view>
+
+#include "trainer/app/report.hpp"
+#include "trainer/app/trainer_run.hpp"
+#include "trainer/core/alloc_counter.hpp"
+
+namespace trainer::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kRepo{TRAINER_SOURCE_DIR};
+
+std::string read_text(const fs::path& path) {
+  std::ifstream stream(path, std::ios::binary);
+  std::ostringstream text;
+  text << stream.rdbuf();
+  return text.str();
+}
+
+std::string replaced(std::string text, std::string_view from, std::string_view to) {
+  const std::size_t position = text.find(from);
+  EXPECT_NE(position, std::string::npos) << "test edit: '" << from << "' not in the text";
+  if (position != std::string::npos) text.replace(position, from.size(), to);
+  return text;
+}
+
+RunOptions simulated(const fs::path& scene, std::uint64_t cycles) {
+  RunOptions options;
+  options.scene_file = scene;
+  options.time_source = TimeSource::simulated;
+  options.cycles = cycles;
+  options.on_log = [](const std::string&) {};
+  return options;
+}
+
+const LoadedModelInfo* catheter_of(const RunResult& result) {
+  for (const LoadedModelInfo& model : result.models) {
+    if (model.kind == config::ModelKind::catheter) return &model;
+  }
+  return nullptr;
+}
+
+bool all_finite(const std::vector<std::array<float, 3>>& positions) {
+  for (const auto& p : positions) {
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) return false;
+  }
+  return true;
+}
+
+// The default catheter's introducer (config/models/catheter.toml [pose] start_m).
+constexpr std::array<float, 3> kIntroducerM{0.0F, 0.03F, -0.06F};
+
+TEST(CatheterScene, RunsWithNoHeapAllocationsOver100000Cycles) {
+  ASSERT_TRUE(core::alloc::hooks_installed());
+  auto result = run_trainer(simulated(kRepo / "config/scenes/catheter.toml", 100'000));
+  ASSERT_TRUE(result) << result.error().message;
+  EXPECT_EQ(result->loop.cycles, 100'000U);
+  EXPECT_EQ(result->heap_allocations_after_arming, 0U);
+  EXPECT_EQ(result->latched_faults, 0U) << result->first_fault;
+  EXPECT_EQ(result->app.model_step_errors, 0U);
+  // The wall scene's chain still runs beside it.
+  EXPECT_GT(result->app.instruments[0].contact_cycles, 1000U);
+
+  const LoadedModelInfo* catheter = catheter_of(*result);
+  ASSERT_NE(catheter, nullptr);
+  EXPECT_EQ(catheter->name, "catheter");
+  EXPECT_EQ(catheter->particle_count, 21U);
+  // docs/catheter.md: 1/ω_max = 23.7 µs for this catheter, 43 substeps per 1 ms.
+  EXPECT_NEAR(catheter->stable_substep_s, 23.66e-6, 0.01e-6);
+  EXPECT_EQ(catheter->substeps_per_period, 43U);
+  EXPECT_EQ(catheter->max_substeps, 64U);
+  EXPECT_GT(catheter->arena_bytes, 21U * 7U * sizeof(float) * 3U);  // 7 arrays of N vectors
+  ASSERT_EQ(catheter->final_positions_m.size(), 21U);
+  EXPECT_TRUE(all_finite(catheter->final_positions_m));
+  EXPECT_EQ(catheter->final_positions_m.front(), kIntroducerM);  // held exactly
+  // Nothing touches it and gravity is off: it stays straight along +x, 0.3 m long.
+  EXPECT_NEAR(catheter->final_positions_m.back()[0], 0.3F, 1e-5F);
+  EXPECT_NEAR(catheter->final_positions_m.back()[2], kIntroducerM[2], 1e-5F);
+
+  const nlohmann::json report = report_json(*result);
+  ASSERT_EQ(report["models"].size(), 1U);
+  EXPECT_EQ(report["models"][0]["kind"], "catheter");
+  EXPECT_EQ(report["models"][0]["substeps_per_period"], 43);
+  EXPECT_EQ(report["models"][0]["particle_count"], 21);
+  EXPECT_NE(report_summary(*result).find("43 substeps per 1000.0 us period"), std::string::npos)
+      << report_summary(*result);
+}
+
+// A copy of the catheter scene and everything it names in a temporary directory, with the
+// catheter definition edited.
+class EditedCatheterScene : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    root_ = fs::temp_directory_path() /
+            ("trainer_catheter_scene_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(root_);
+    for (const char* directory : {"scenes", "models", "devices", "trajectories"}) {
+      fs::create_directories(root_ / directory);
+    }
+    fs::copy_file(kRepo / "config/scenes/catheter.toml", root_ / "scenes/catheter.toml");
+    fs::copy_file(kRepo / "config/devices/sim.toml", root_ / "devices/sim.toml");
+    fs::copy_file(kRepo / "config/trajectories/wall_press.csv", root_ / "trajectories/wall_press.csv");
+  }
+  void TearDown() override {
+    std::error_code ignored;
+    fs::remove_all(root_, ignored);
+  }
+  // Writes the default catheter with one edit; returns the scene that names it.
+  fs::path scene_with(std::string_view from, std::string_view to) const {
+    std::ofstream(root_ / "models/catheter.toml", std::ios::binary | std::ios::trunc)
+        << replaced(read_text(kRepo / "config/models/catheter.toml"), from, to);
+    return root_ / "scenes/catheter.toml";
+  }
+
+  fs::path root_;
+};
+
+constexpr std::string_view kNoGravity = "gravity_m_per_s2 = [0.0, 0.0, 0.0]";
+constexpr std::string_view kGravity = "gravity_m_per_s2 = [0.0, 0.0, -9.81]";
+
+TEST_F(EditedCatheterScene, GravityFallsAsTheDampedFreeFallAtFirst) {
+  // For 20 ms the tip, 0.3 m from the held root, does not yet feel the root (bending
+  // "diffusion" length √(t √(EI/ρ_l)) ≈ 5.5 cm): it falls as a free particle under m·g with
+  // the drag −b v, z(t) = g/c · t − g/c² (1 − e^{−ct}), c = b/m. A cycle skipped or stepped
+  // twice, or a force other than m·g, moves it by far more than the 1 % tolerance (the
+  // substep error of semi-implicit Euler at 23 µs is below 1e-4 of the drop).
+  const std::uint64_t cycles = 20;
+  auto result = run_trainer(simulated(scene_with(kNoGravity, kGravity), cycles));
+  ASSERT_TRUE(result) << result.error().message;
+  EXPECT_EQ(result->app.model_step_errors, 0U);
+  const LoadedModelInfo* catheter = catheter_of(*result);
+  ASSERT_NE(catheter, nullptr);
+  ASSERT_EQ(catheter->final_positions_m.size(), 21U);
+
+  const double mass_kg = 1.65e-3 * 0.3 / 21.0;  // ρ_l L / N
+  const double c = 5.0e-4 / mass_kg;
+  const double g = 9.81;
+  const double t = static_cast<double>(cycles) * 1e-3;
+  const double expected_drop_m = g / c * t - g / (c * c) * (1.0 - std::exp(-c * t));
+  const auto& tip = catheter->final_positions_m.back();
+  const double drop_m = static_cast<double>(kIntroducerM[2]) - static_cast<double>(tip[2]);
+  EXPECT_NEAR(drop_m, expected_drop_m, 0.01 * expected_drop_m);
+  EXPECT_NEAR(tip[0], 0.3F, 1e-4F);
+  EXPECT_EQ(catheter->final_positions_m.front(), kIntroducerM);
+}
+
+TEST_F(EditedCatheterScene, UnderGravityItHangsBelowItsIntroducerAndSettles) {
+  const fs::path scene = scene_with(kNoGravity, kGravity);
+  auto early = run_trainer(simulated(scene, 4000));
+  auto late = run_trainer(simulated(scene, 6000));
+  ASSERT_TRUE(early) << early.error().message;
+  ASSERT_TRUE(late) << late.error().message;
+  EXPECT_EQ(late->heap_allocations_after_arming, 0U);  // the m·g path allocates nothing either
+  EXPECT_EQ(late->app.model_step_errors, 0U);
+  const LoadedModelInfo* a = catheter_of(*early);
+  const LoadedModelInfo* b = catheter_of(*late);
+  ASSERT_TRUE(a != nullptr && b != nullptr);
+  ASSERT_EQ(b->final_positions_m.size(), 21U);
+  EXPECT_TRUE(all_finite(b->final_positions_m));
+  EXPECT_EQ(b->final_positions_m.front(), kIntroducerM);
+
+  // Every particle but the held root below the introducer; the tip well below (a linear
+  // cantilever estimate ρ_l g L⁴/(8 EI) = 0.42 m exceeds L: it hangs).
+  for (std::size_t i = 1; i < b->final_positions_m.size(); ++i) {
+    EXPECT_LT(b->final_positions_m[i][2], kIntroducerM[2]) << "particle " << i;
+  }
+  EXPECT_LT(b->final_positions_m.back()[2], kIntroducerM[2] - 0.1F);
+  // Unstretched: its weight (4.9 mN) strains EA = 157 N by 3e-5.
+  double length_m = 0.0;
+  for (std::size_t i = 1; i < b->final_positions_m.size(); ++i) {
+    const auto& p = b->final_positions_m[i];
+    const auto& q = b->final_positions_m[i - 1];
+    length_m += std::hypot(static_cast<double>(p[0] - q[0]), static_cast<double>(p[1] - q[1]),
+                           static_cast<double>(p[2] - q[2]));
+  }
+  EXPECT_NEAR(length_m, 0.3, 0.3 * 1e-3);
+  // Settled: the tip moved less than 0.1 mm between 4 s and 6 s (it hangs at about 0.22 m below).
+  const auto& tip_a = a->final_positions_m.back();
+  const auto& tip_b = b->final_positions_m.back();
+  EXPECT_LT(std::hypot(tip_a[0] - tip_b[0], tip_a[1] - tip_b[1], tip_a[2] - tip_b[2]), 1e-4F);
+}
+
+TEST_F(EditedCatheterScene, CatheterUnstableWithinItsBudgetIsRefusedBeforeArming) {
+  // The default needs 43 substeps of 23.7 µs per 1 ms period; a budget of 40 cannot hold it.
+  auto result = run_trainer(simulated(scene_with("max_substeps = 64", "max_substeps = 40"), 10));
+  ASSERT_FALSE(result);
+  const std::string& message = result.error().message;
+  EXPECT_NE(message.find((root_ / "scenes/catheter.toml").string()), std::string::npos) << message;
+  EXPECT_NE(message.find("model 'catheter' (" + (root_ / "models/catheter.toml").string() + ")"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("needs 43 substeps"), std::string::npos) << message;
+  EXPECT_NE(message.find("max_substeps = 40"), std::string::npos) << message;
+
+  // The same file with more particles needs more substeps (85 at N = 41) than its 64.
+  auto dense = run_trainer(simulated(scene_with("particle_count = 21", "particle_count = 41"), 10));
+  ASSERT_FALSE(dense);
+  EXPECT_NE(dense.error().message.find("needs 85 substeps"), std::string::npos)
+      << dense.error().message;
+}
+
+}  // namespace
+}  // namespace trainer::app
