@@ -1,0 +1,126 @@
+// Broad phase for a deforming triangle mesh: Cotin's bucket detector (METHODS.md §4) as a
+// uniform spatial hash rebuilt every cycle. Space is cut into cubic cells of edge
+// cell_size_m; cell (i, j, k) maps to one of table_size buckets by a hash; every triangle is
+// stored in the bucket of each cell its axis-aligned bounding box (AABB) covers. A query box
+// returns every triangle stored in the buckets of the cells it covers, deduplicated: a
+// superset of the triangles whose AABB overlaps the box (hash collisions only add
+// candidates), so a narrow phase over the candidates finds exactly what a brute force over
+// all triangles finds.
+//
+// Differences from Cotin's paper: he hashes nodes and then searches the nearest node's
+// triangles; we hash triangles, so a contact inside a large triangle whose vertices are all
+// far away is never missed and there is no nearest-node search.
+//
+// Storage is a compressed bucket table (counts → prefix sums → entries), rebuilt from
+// scratch in O(m + table_size) with two passes over the triangles; every array is carved from
+// a core::Arena at create(). Cell size: about the mean edge length of the mesh, or the tool
+// radius if larger (docs/collision.md has the measurement): much smaller and a triangle
+// occupies many cells (more entries, slower rebuild), much larger and queries return many
+// triangles the narrow phase then rejects.
+//
+// Units: metres. One thread owns a grid (the haptic thread); query() is not const because it
+// stamps triangles to deduplicate without clearing a set.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "trainer/core/arena.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/core/status.hpp"
+
+namespace trainer::model {
+
+using Vec3 = Eigen::Vector3f;
+
+struct Aabb {
+  Vec3 min_m = Vec3::Zero();
+  Vec3 max_m = Vec3::Zero();
+
+  static Aabb around_point(const Vec3& centre, float half_size_m) noexcept {
+    return {(centre.array() - half_size_m).matrix(), (centre.array() + half_size_m).matrix()};
+  }
+  static Aabb around_segment(const Vec3& p0, const Vec3& p1, float margin_m) noexcept {
+    return {(p0.cwiseMin(p1).array() - margin_m).matrix(),
+            (p0.cwiseMax(p1).array() + margin_m).matrix()};
+  }
+};
+
+struct BucketGridSettings {
+  std::uint32_t max_triangles = 0;
+  std::uint32_t max_vertices = 0;
+  float cell_size_m = 0.0F;          // > 0
+  std::uint32_t table_size = 0;      // buckets, a power of two
+  std::uint32_t max_entries = 0;     // (triangle, cell) pairs over the whole mesh
+};
+
+class BucketGrid {
+ public:
+  // Cell coordinates are clamped to ±kMaxCellIndex so a far-away (or huge) coordinate cannot
+  // overflow; the clamp is applied to stored triangles and query boxes alike, so the result
+  // stays a superset.
+  static constexpr std::int32_t kMaxCellIndex = 1 << 20;
+
+  // Setup path: checks the settings and carves the bucket table, the entries and the
+  // deduplication stamps from `arena`.
+  static core::Expected<BucketGrid> create(const BucketGridSettings& settings, core::Arena& arena);
+
+  // ---- RT path: noexcept, no heap ----
+
+  // Rebuilds the table from the current vertex positions (3n floats, x y z per vertex) and
+  // triangles (3m vertex indices). Refuses, leaving the grid empty: more than max_vertices or
+  // max_triangles (capacity_exceeded), a length not a multiple of 3 or an index ≥ n
+  // (invalid_argument), a non-finite position (numeric_error), and more (triangle, cell)
+  // pairs than max_entries (capacity_exceeded; required_entries() then says how many).
+  core::Status rebuild(std::span<const float> positions_m,
+                       std::span<const std::uint32_t> triangles) noexcept;
+
+  // Triangle ids whose buckets the box touches, each once, into `out_ids`; `out_count` is
+  // how many were written. capacity_exceeded when `out_ids` was too short (the first
+  // out_ids.size() found are written); invalid_argument for a non-finite or inverted box.
+  // A box covering more cells than there are buckets scans every bucket instead.
+  core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids,
+                     std::size_t& out_count) noexcept;
+
+  void clear() noexcept;
+
+  std::size_t triangle_count() const noexcept { return triangle_count_; }
+  std::size_t entry_count() const noexcept { return entry_count_; }
+  // Pairs the last rebuild needed (also when it refused for lack of max_entries).
+  std::size_t required_entries() const noexcept { return required_entries_; }
+  float cell_size_m() const noexcept { return cell_size_m_; }
+  std::size_t table_size() const noexcept { return bucket_start_.size() - 1; }
+
+ private:
+  struct CellRange {
+    std::int32_t min[3];
+    std::int32_t max[3];
+  };
+
+  BucketGrid() = default;
+  std::int32_t cell_index(float coordinate_m) const noexcept;
+  CellRange cells_of(const Vec3& min_m, const Vec3& max_m) const noexcept;
+  std::uint32_t bucket_of(std::int32_t i, std::int32_t j, std::int32_t k) const noexcept;
+  // Appends the not-yet-stamped triangles of `bucket`; false when out_ids is full.
+  bool collect_bucket(std::uint32_t bucket, std::span<std::uint32_t> out_ids,
+                      std::size_t& out_count) noexcept;
+
+  float cell_size_m_ = 0.0F;
+  float inverse_cell_size_ = 0.0F;
+  std::uint32_t bucket_mask_ = 0;
+  std::uint32_t max_vertices_ = 0;
+  std::size_t triangle_count_ = 0;
+  std::size_t entry_count_ = 0;
+  std::size_t required_entries_ = 0;
+  std::uint32_t stamp_ = 0;
+
+  std::span<std::uint32_t> bucket_start_;  // table_size + 1 prefix sums into entries_
+  std::span<std::uint32_t> entries_;       // triangle ids, grouped by bucket
+  std::span<CellRange> triangle_cells_;    // per triangle: the cells its AABB covers
+  std::span<std::uint32_t> stamps_;        // per triangle: last query that returned it
+};
+
+}  // namespace trainer::model
