@@ -284,7 +284,21 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     info.static_correction = metadata.static_correction != 0;
     app->model_info_.push_back(std::move(info));
   }
+  // Every entry above pushed exactly one info, so scene order is model_info_ order.
+  for (std::size_t m = 0; m < scene.models.size(); ++m) {
+    const config::SceneModelConfig& entry = scene.models[m];
+    app->model_transforms_[m] = RigidTransform::from_placement(entry.position_m, entry.rotation_deg);
+    app->model_info_[m].position_m = entry.position_m;
+    app->model_info_[m].rotation_deg = entry.rotation_deg;
+  }
   return app;
+}
+
+std::optional<RigidTransform> HapticApp::model_transform(const std::string& name) const {
+  for (std::size_t m = 0; m < model_info_.size(); ++m) {
+    if (model_info_[m].name == name) return model_transforms_[m];
+  }
+  return std::nullopt;
 }
 
 bool HapticApp::read_inputs(const loop::CycleTiming& timing,

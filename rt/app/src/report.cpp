@@ -104,6 +104,10 @@ nlohmann::json report_json(const RunResult& r) {
                       {"static_correction", m.static_correction},
                       {"prepared_time_step_s", m.prepared_time_step_s}});
   }
+  for (std::size_t m = 0; m < r.models.size(); ++m) {  // every kind: placement in the scene
+    models[m]["position_m"] = r.models[m].position_m;
+    models[m]["rotation_deg"] = r.models[m].rotation_deg;
+  }
   nlohmann::json fault_counts = nlohmann::json::object();
   for (const auto& [name, count] : r.fault_counts) fault_counts[name] = count;
 

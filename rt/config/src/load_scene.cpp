@@ -1,5 +1,6 @@
 // The scene file schema: [scene], [loop], [memory], [safety], [trainee], [[instrument]],
-// [[object]], plus the device file named by [scene] device. Every key, unit, range and default
+// [[object]], [[model]], plus the device file named by [scene] device and the model
+// definition files named by [[model]] definition. Every key, unit, range and default
 // here is documented in docs/config.md; keep them in step.
 #include <algorithm>
 #include <array>
@@ -67,6 +68,7 @@ constexpr RealRange kSphereRadiusRangeM = RealRange::left_open(0.0, 1.0);
 constexpr RealRange kObjectStiffnessRange = RealRange::left_open(0.0, 1e6);
 constexpr RealRange kObjectDampingRange = RealRange::closed(0.0, 1e4);
 constexpr double kDefaultObjectDampingNsPerM = 0.0;
+constexpr RealRange kRotationComponentRangeDeg = RealRange::closed(-360.0, 360.0);
 
 LoopConfig read_loop(TableReader& table) {
   LoopConfig loop;
@@ -306,6 +308,18 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
     model.name = entry.required_name("name");
     std::filesystem::path display;
     const std::filesystem::path definition = entry.required_file("definition", true, &display);
+    model.position_m =
+        entry.optional_vec3("position_m", Vec3{}, kPositionComponentRangeM, "metres");
+    model.rotation_deg = entry.optional_vec3(
+        "rotation_deg", Vec3{}, kRotationComponentRangeDeg,
+        "degrees, intrinsic: about x, then the turned y, then the turned z");
+    const auto touched_by = entry.optional_string_array("touched_by", 1, kMaxSceneInstruments,
+                                                        "names of instruments in this scene");
+    if (!touched_by) {
+      for (std::size_t i = 0; i < config.instruments.size(); ++i) model.touched_by.push_back(i);
+    } else {
+      model.touched_by = resolve_touched_by(entry, *touched_by, config.instruments, errors);
+    }
     entry.finish();
     for (const SceneModelConfig& earlier : config.models) {
       if (errors.ok() && earlier.name == model.name) {

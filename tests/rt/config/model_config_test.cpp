@@ -1,6 +1,11 @@
 // Model definition files: the repository's duct and catheter load with their SI values, a scene
-// names them with [[model]], and mistakes give their specific messages.
+// names and places them with [[model]], and mistakes give their specific messages.
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "config_test_files.hpp"
 #include "trainer/config/model.hpp"
@@ -321,6 +326,85 @@ TEST_F(TensorDefinitionErrors, ShellOnlyKeysAndUnknownMapsAreRefused) {
   expect_contains(m, "nonlinear.force_along");
   m = message_for("[tensor]", "[modal]");
   expect_contains(m, "modal");
+}
+
+// ---------------------------------------------------------------- model placement in a scene
+
+// The wall scene with a second instrument and one [[model]] whose extra lines are `placement`.
+class ScenePlacement : public ConfigFileTest {
+ protected:
+  struct Written {
+    std::filesystem::path path;
+    std::string text;
+  };
+  Written write_scene(std::string_view placement) {
+    write("models/duct.toml", read_text(repo_path("config/models/duct.toml")));
+    write("devices/sim.toml", read_text(repo_path("config/devices/sim.toml")));
+    std::string scene = replace_first(read_text(repo_path("config/scenes/wall.toml")),
+                                      "script = \"../trajectories/wall_press.csv\"",
+                                      "script = \"builtin:hold\"")
+                            .text;
+    scene += "\n[[instrument]]\nname = \"assist\"\ndevice_instrument = \"right\"\n";
+    scene += "\n[[model]]\nname = \"duct\"\ndefinition = \"../models/duct.toml\"\n";
+    scene += placement;
+    return {write("scenes/scene.toml", scene), scene};
+  }
+  // The message for a placement that must be refused, checked to start at file:line of `key`.
+  std::string refused(std::string_view placement, std::string_view key) {
+    const Written scene = write_scene(placement);
+    auto loaded = load_scene(scene.path);
+    EXPECT_FALSE(loaded) << "accepted: " << placement;
+    if (loaded) return {};
+    const std::size_t model_table = scene.text.find("[[model]]");
+    const std::size_t key_position = scene.text.find(key, model_table);
+    EXPECT_NE(key_position, std::string::npos);
+    expect_contains(loaded.error().message,
+                    scene.path.string() + ":" +
+                        std::to_string(testing::line_at(scene.text, key_position)) + ": ");
+    return loaded.error().message;
+  }
+};
+
+TEST_F(ScenePlacement, DefaultsPlaceAtTheOriginForEveryInstrument) {
+  auto loaded = load_scene(write_scene("").path);
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  ASSERT_EQ(loaded->models.size(), 1U);
+  EXPECT_EQ(loaded->models[0].position_m, (Vec3{0.0, 0.0, 0.0}));
+  EXPECT_EQ(loaded->models[0].rotation_deg, (Vec3{0.0, 0.0, 0.0}));
+  EXPECT_EQ(loaded->models[0].touched_by, (std::vector<std::size_t>{0, 1}));
+}
+
+TEST_F(ScenePlacement, ReadsPositionRotationAndTouchedBy) {
+  auto loaded = load_scene(write_scene("position_m = [0.01, -0.02, -0.08]\n"
+                                       "rotation_deg = [90, -30.5, 360]\n"
+                                       "touched_by = [\"assist\"]\n")
+                               .path);
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  const SceneModelConfig& model = loaded->models[0];
+  EXPECT_EQ(model.position_m, (Vec3{0.01, -0.02, -0.08}));
+  EXPECT_EQ(model.rotation_deg, (Vec3{90.0, -30.5, 360.0}));
+  EXPECT_EQ(model.touched_by, (std::vector<std::size_t>{1}));
+}
+
+TEST_F(ScenePlacement, MistakesNameFileLineKeyAndExpectation) {
+  expect_contains(refused("position_m = [0.0, 11.0, 0.0]\n", "position_m"),
+                  "model[0].position_m[1] = 11.0 is out of range: expected -10 to 10 (metres)");
+  expect_contains(refused("position_m = [0.0, 0.0]\n", "position_m"), "model[0].position_m");
+  expect_contains(refused("rotation_deg = [0, 0, 361]\n", "rotation_deg"),
+                  "model[0].rotation_deg[2] = 361 is out of range: expected -360 to 360 (degrees, "
+                  "intrinsic: about x, then the turned y, then the turned z)");
+  expect_contains(refused("rotation_deg = [nan, 0, 0]\n", "rotation_deg"),
+                  "model[0].rotation_deg[0] = nan is not a finite number");
+  expect_contains(refused("touched_by = [\"left\", \"rigth\"]\n", "touched_by"),
+                  "model[0].touched_by[1] = \"rigth\": expected the name of an instrument in "
+                  "this scene (left, assist)");
+  expect_contains(refused("touched_by = [\"assist\", \"assist\"]\n", "touched_by"),
+                  "model[0].touched_by[1] = \"assist\": expected each instrument at most once");
+  expect_contains(refused("touched_by = []\n", "touched_by"),
+                  "model[0].touched_by = [] has 0 elements: expected an array of 1 to 4 strings");
+  expect_contains(refused("rotaton_deg = [0, 0, 90]\n", "rotaton_deg"),
+                  "unknown key 'model[0].rotaton_deg' (known: name, definition, position_m, "
+                  "rotation_deg, touched_by); did you mean 'rotation_deg'?");
 }
 
 }  // namespace

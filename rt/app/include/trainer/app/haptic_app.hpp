@@ -13,6 +13,7 @@
 #include <span>
 #include <string>
 
+#include "trainer/app/rigid_transform.hpp"
 #include "trainer/app/telemetry.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/arena.hpp"
@@ -76,6 +77,9 @@ struct LoadedModelInfo {
   std::uint32_t substeps_per_period = 0;  // substeps one loop period costs
   std::uint32_t max_substeps = 0;       // the budget from the definition
   bool hold_start = false;
+  // Placement in the trainer frame as the scene wrote it ([[model]] position_m, rotation_deg).
+  std::array<double, 3> position_m{};
+  std::array<double, 3> rotation_deg{};
   // Filled after the run (run_trainer): the catheter's particle positions when the loop ended.
   std::vector<std::array<float, 3>> final_positions_m;
 };
@@ -117,6 +121,12 @@ class HapticApp final : public loop::CycleTask {
   const safety::SafetySupervisor& safety() const noexcept { return safety_; }
   std::size_t instrument_count() const noexcept { return instruments_.size(); }
   const std::vector<LoadedModelInfo>& models() const noexcept { return model_info_; }
+  // Placement of the model named `name` (model frame → trainer frame), nullopt if the scene
+  // has no such model. model_transform(index) is the same for models()[index].
+  std::optional<RigidTransform> model_transform(const std::string& name) const;
+  const RigidTransform& model_transform(std::size_t index) const noexcept {
+    return model_transforms_[index];
+  }
   // Non-RT, after the loop stopped: the current particle positions of the catheter model
   // named `name` (empty if the scene has no such catheter).
   std::vector<std::array<float, 3>> catheter_positions_m(const std::string& name) const;
@@ -182,6 +192,9 @@ class HapticApp final : public loop::CycleTask {
   std::size_t catheter_count_ = 0;
   float catheter_period_s_ = 0.0F;  // the loop period: each cycle advances the chain by it
   std::vector<LoadedModelInfo> model_info_;  // setup-time description, never touched in the cycle
+  // Per model in scene order (as model_info_), from [[model]] position_m / rotation_deg.
+  // Not used by the cycle yet: contact will map tool points into each model's frame with it.
+  std::array<RigidTransform, kMaxModels> model_transforms_{};
 
   AppStats stats_{};
   std::uint32_t read_error_streak_ = 0;

@@ -81,6 +81,13 @@ struct ObjectConfig {  // [[object]]
 struct SceneModelConfig {  // [[model]]: a model the scene uses, by its definition file
   std::string name;          // unique within the scene
   ModelDefinition definition;
+  // Placement of the model's own frame (where it was built, e.g. the duct along +x from
+  // x = 0) in the trainer frame: x_world = R · x_model + position_m, with
+  // R = Rx(rx) · Ry(ry) · Rz(rz) for rotation_deg = [rx, ry, rz] — intrinsic rotations, first
+  // about the model's x, then about the once-turned y, then about the twice-turned z.
+  Vec3 position_m{};                    // metres, each component [-10, 10], default 0
+  Vec3 rotation_deg{};                  // degrees, each component [-360, 360], default 0
+  std::vector<std::size_t> touched_by;  // indices into SceneConfig::instruments, no repeats
 };
 
 struct SceneConfig {
