@@ -9,6 +9,8 @@
 //   BM_CellSize/<triangles>/<cell as % of the mean edge> rebuild + 21 sphere queries
 //   BM_ProxyUpdate/<triangles>        one god-object update, tool sliding around the tube
 //                                     pressed 0.5 mm into the wall (grid rebuilt outside)
+//   BM_ParticleContact/<triangles>/<particles> ParticleSurfaceContact::compute for a catheter
+//                                     lying along the wall inside the tube (grid rebuilt outside)
 // Counter `allocs` is the heap allocations per iteration in the timed calls (must be 0).
 #include <benchmark/benchmark.h>
 
@@ -24,6 +26,7 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/model/bucket_grid.hpp"
 #include "trainer/model/geometry.hpp"
+#include "trainer/model/particle_contact.hpp"
 #include "trainer/model/proxy.hpp"
 
 namespace {
@@ -279,11 +282,59 @@ void BM_ProxyUpdate(benchmark::State& state) {
   state.counters["in_contact"] = step > 0 ? in_contact / static_cast<double>(step) : 0.0;
 }
 
+// A catheter of N particles (radius 0.5 mm) lying in the lumen along a helix near the wall,
+// a third of them pressed up to 0.3 mm into it, sliding round 0.2 mm per cycle; the duct wall
+// 0.2 mm thick (offset 0.1 mm), inner side. Grid rebuilt outside the timed call (BM_Rebuild).
+void BM_ParticleContact(benchmark::State& state) {
+  const Tube tube = make_tube(size_for(state.range(0)));
+  const auto particles = static_cast<std::size_t>(state.range(1));
+  Broadphase broadphase = make_broadphase(tube, tube.mean_edge_m);
+  const std::vector<float>& positions = tube.shapes[3];
+  if (!broadphase.grid.rebuild(positions, tube.triangles).is_ok()) std::abort();
+  model::ParticleContactSettings settings;
+  settings.max_particles = static_cast<std::uint32_t>(particles);
+  settings.max_contacts = static_cast<std::uint32_t>(4 * particles);
+  settings.max_nodes = static_cast<std::uint32_t>(tube.rest.size() / 3);
+  settings.stiffness_n_per_m = 200.0F;
+  settings.damping_n_s_per_m = 0.01F;
+  settings.surface_offset_m = 1e-4F;
+  settings.max_force_n = 1.0F;
+  settings.side = model::ContactSide::inner;
+  auto contact = model::ParticleSurfaceContact::create(settings, broadphase.arena);
+  if (!contact) std::abort();
+  const model::TriangleMeshView mesh{positions, tube.triangles};
+  std::vector<Vec3> centres(particles);
+  const std::vector<Vec3> velocities(particles, Vec3(0.0F, 0.0F, 0.01F));
+  model::ParticleContactOutput out;
+  std::int64_t step = 0;
+  double contacts = 0.0;
+  const std::uint64_t before = core::alloc::counted_allocations();
+  core::alloc::begin_counting_this_thread();
+  for (auto _ : state) {
+    for (std::size_t i = 0; i < particles; ++i) {
+      const float along = (static_cast<float>(i) + 0.5F) / static_cast<float>(particles);
+      const float angle = 1.5F * along + 0.05F * static_cast<float>(step % 126);
+      const float radius = kTubeRadiusM - 0.4e-3F - 0.3e-3F * static_cast<float>(i % 3);
+      centres[i] = Vec3(radius * std::cos(angle), radius * std::sin(angle), 0.9F * kTubeLengthM * along + 0.002F);
+    }
+    if (!contact->compute(centres, velocities, kSphereRadiusM, mesh, {}, broadphase.grid, out).is_ok()) {
+      state.SkipWithError("particle contact");
+      break;
+    }
+    contacts += out.contact_count;
+    ++step;
+  }
+  core::alloc::end_counting_this_thread();
+  state.counters["allocs"] = static_cast<double>(core::alloc::counted_allocations() - before);
+  state.counters["contacts"] = step > 0 ? contacts / static_cast<double>(step) : 0.0;
+}
+
 BENCHMARK(BM_Rebuild)->Arg(640)->Arg(2560)->Arg(10240)->Arg(40960);
 BENCHMARK(BM_Query)->ArgsProduct({{640, 2560, 10240, 40960}, {1, 8, 21, 64}});
 BENCHMARK(BM_BruteForce)->ArgsProduct({{640, 2560}, {1, 21}});
 BENCHMARK(BM_CellSize)->ArgsProduct({{640, 10240}, {25, 50, 100, 200, 400}});
 BENCHMARK(BM_ProxyUpdate)->Arg(640)->Arg(10240)->Arg(40960);
+BENCHMARK(BM_ParticleContact)->ArgsProduct({{640}, {21, 41}});
 
 }  // namespace
 
