@@ -1,5 +1,8 @@
 #include "trainer/app/haptic_app.hpp"
 
+#include <bit>
+#include <limits>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -92,6 +95,13 @@ core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDe
   }
   return settings;
 }
+
+// The forceps tip as seen by soft-tissue contact: a sphere of this radius at the closed jaws'
+// tip (jaws of a 5 mm instrument taper to about 2 mm).
+constexpr float kForcepsTipRadiusM = 0.001F;
+// How far outside a model's rest mesh a tool tip must be for the model's surface to be left
+// stale: more than the model deforms plus one cycle of tool travel.
+constexpr float kSurfaceMarginM = 0.02F;
 
 // What the report says of a model loaded from an image, whatever its kind.
 LoadedModelInfo image_model_info(const config::SceneModelConfig& entry,
@@ -278,6 +288,12 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
       return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
                               "): " + modal.error().message);
     }
+    auto contact_state = make_modal_contact(entry, *image, scene.instruments.size(), arena);
+    if (!contact_state) {
+      return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
+                              "): " + contact_state.error().message);
+    }
+    app->modal_contacts_[app->modal_model_count_] = std::move(contact_state).value();
     app->modal_models_[app->modal_model_count_++].emplace(std::move(*modal));
     LoadedModelInfo info = image_model_info(entry, definition, *image, arena.used_bytes() - arena_before);
     info.mode_count = metadata.mode_count;
@@ -337,7 +353,7 @@ bool HapticApp::read_inputs(const loop::CycleTiming& timing,
   return encoders_ok;
 }
 
-void HapticApp::update_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept {
+void HapticApp::sense_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept {
   InstrumentState& state = instruments_[index];
   const auto dt = static_cast<float>(timing.dt_s);
   const auto alpha = static_cast<float>(
@@ -366,13 +382,24 @@ void HapticApp::update_instrument(std::size_t index, const loop::CycleTiming& ti
     state.has_position = true;
   }
 
-  const kinematics::InstrumentPose pose = state.kinematics.forward(state.position);
-  const float tip_distance = pose.insertion_m;
-  const Vec3 tip_velocity =
-      kinematics::TrocarKinematics::point_velocity(pose, tip_distance, state.velocity);
+  if (state.has_position) {
+    state.previous_tip_m = state.pose.tip_m;
+    state.has_previous_tip = true;
+  }
+  state.pose = state.kinematics.forward(state.position);
+  state.tip_velocity =
+      kinematics::TrocarKinematics::point_velocity(state.pose, state.pose.insertion_m, state.velocity);
+}
 
-  Vec3 requested = Vec3::Zero();
-  bool in_contact = false;
+void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept {
+  InstrumentState& state = instruments_[index];
+  const auto dt = static_cast<float>(timing.dt_s);
+  const kinematics::InstrumentPose& pose = state.pose;
+  const float tip_distance = pose.insertion_m;
+  const Vec3 tip_velocity = state.tip_velocity;
+
+  Vec3 requested = state.model_force_n;
+  bool in_contact = state.model_contact;
   float depth = 0.0F;
   for (const ObjectState& object : objects_) {
     if ((object.touched_by_mask & (1U << static_cast<unsigned>(index))) == 0) continue;
@@ -479,10 +506,9 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
     for (InstrumentState& state : instruments_) state.velocity.fill(0.0F);
   }
 
-  for (std::size_t i = 0; i < instruments_.size(); ++i) update_instrument(i, timing);
-  for (std::size_t m = 0; m < modal_model_count_; ++m) {
-    if (!modal_models_[m]->step().is_ok()) ++stats_.model_step_errors;
-  }
+  for (std::size_t i = 0; i < instruments_.size(); ++i) sense_instrument(i, timing);
+  contact_modal_models();  // tool forces from the ducts, their step, next cycle's surfaces
+  for (std::size_t i = 0; i < instruments_.size(); ++i) render_instrument(i, timing);
   for (std::size_t c = 0; c < catheter_count_; ++c) {
     CatheterState& state = catheters_[c];
     model::Catheter& catheter = *state.catheter;
@@ -516,6 +542,170 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   publish(timing);
   return encoders_ok ? core::Status::ok()
                      : core::Status{core::StatusCode::io_error, "encoder read failed"};
+}
+
+core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
+    const config::SceneModelConfig& entry, const model::ModelImage& image,
+    std::size_t instrument_count, core::Arena& arena) {
+  ModalContactState state;
+  state.transform = RigidTransform::from_placement(entry.position_m, entry.rotation_deg);
+  for (const std::size_t instrument : entry.touched_by) {
+    state.touched_by_mask |= 1U << static_cast<unsigned>(instrument);
+  }
+  state.rest_positions = image.floats(model::SectionId::rest_positions);
+  state.triangles = image.u32s(model::SectionId::triangles);
+  auto deformed = arena.allocate_array<float>(state.rest_positions.size(), "deformed surface");
+  if (!deformed) return std::move(deformed).error();
+  state.deformed = deformed.value();
+  std::copy(state.rest_positions.begin(), state.rest_positions.end(), state.deformed.begin());
+  if (state.touched_by_mask == 0) return state;  // nothing touches it: no grid, no contacts
+
+  const auto vertex = [&](std::uint32_t node) {
+    const std::size_t base = 3 * static_cast<std::size_t>(node);
+    return Vec3(state.rest_positions[base], state.rest_positions[base + 1],
+                state.rest_positions[base + 2]);
+  };
+  float longest_edge = 0.0F;
+  const std::size_t triangle_count = state.triangles.size() / 3;
+  state.near_box.min_m = Vec3::Constant(std::numeric_limits<float>::max());
+  state.near_box.max_m = Vec3::Constant(-std::numeric_limits<float>::max());
+  for (std::size_t node = 0; node < state.rest_positions.size() / 3; ++node) {
+    state.near_box.min_m = state.near_box.min_m.cwiseMin(vertex(static_cast<std::uint32_t>(node)));
+    state.near_box.max_m = state.near_box.max_m.cwiseMax(vertex(static_cast<std::uint32_t>(node)));
+  }
+  state.near_box.min_m.array() -= kSurfaceMarginM;
+  state.near_box.max_m.array() += kSurfaceMarginM;
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    for (std::size_t e = 0; e < 3; ++e) {
+      const Vec3 a = vertex(state.triangles[3 * t + e]);
+      const Vec3 b = vertex(state.triangles[3 * t + (e + 1) % 3]);
+      longest_edge = std::max(longest_edge, (a - b).norm());
+    }
+  }
+  model::BucketGridSettings grid_settings;
+  grid_settings.max_triangles = static_cast<std::uint32_t>(triangle_count);
+  grid_settings.max_vertices = static_cast<std::uint32_t>(state.rest_positions.size() / 3);
+  grid_settings.cell_size_m = 1.5F * longest_edge;
+  grid_settings.max_entries = static_cast<std::uint32_t>(27 * triangle_count);
+  grid_settings.table_size = std::bit_ceil(2U * grid_settings.max_entries / 8U + 1U);
+  auto grid = model::BucketGrid::create(grid_settings, arena);
+  if (!grid) return std::move(grid).error();
+  state.grid.emplace(std::move(grid).value());
+  model::DisplacementContactSettings contact_settings;
+  contact_settings.tip_radius_m = kForcepsTipRadiusM;
+  for (std::size_t i = 0; i < instrument_count; ++i) {
+    if ((state.touched_by_mask & (1U << static_cast<unsigned>(i))) == 0) continue;
+    auto contact = model::DisplacementContact::create(
+        contact_settings, image.u32s(model::SectionId::fixed_nodes), arena);
+    if (!contact) return std::move(contact).error();
+    state.contacts[i].emplace(std::move(contact).value());
+  }
+  return state;
+}
+
+void HapticApp::refresh_surface(ModalContactState& state,
+                                const model::ModalModel& modal) noexcept {
+  state.surface_ready = false;
+  if (!state.grid) return;
+  if (!modal.reconstruct(state.deformed).is_ok()) return;
+  for (std::size_t i = 0; i < state.deformed.size(); ++i) state.deformed[i] += state.rest_positions[i];
+  state.surface_ready = state.grid->rebuild(state.deformed, state.triangles).is_ok();
+}
+
+void HapticApp::contact_modal_models() noexcept {
+  for (InstrumentState& instrument : instruments_) {
+    instrument.model_force_n.setZero();
+    instrument.model_contact = false;
+  }
+  for (std::size_t m = 0; m < modal_model_count_; ++m) {
+    model::ModalModel& modal = *modal_models_[m];
+    ModalContactState& state = modal_contacts_[m];
+    modal.clear_forces();
+    std::array<model::ImposedDisplacement, model::ModalModel::kMaxContacts> targets{};
+    std::array<std::size_t, model::ModalModel::kMaxContacts> owner{};
+    std::size_t target_count = 0;
+    // Is any touching tool near, or any contact holding? Only then is the surface needed.
+    bool near = false;
+    for (std::size_t i = 0; i < instruments_.size(); ++i) {
+      if (!state.contacts[i]) continue;
+      const Vec3 tip = state.transform.to_model(instruments_[i].pose.tip_m);
+      const bool inside = (tip.array() >= state.near_box.min_m.array()).all() &&
+                          (tip.array() <= state.near_box.max_m.array()).all();
+      near = near || inside || state.contacts[i]->in_contact();
+    }
+    if (near && !state.surface_ready) refresh_surface(state, modal);
+    if (near && state.surface_ready) {
+      const model::TriangleMeshView view{state.deformed, state.triangles};
+      // Gather every touching tool's imposed displacements; a contact that would need more
+      // than the model's capacity is released (its tool feels nothing rather than a wrong force).
+      for (std::size_t i = 0; i < instruments_.size(); ++i) {
+        if (!state.contacts[i]) continue;
+        InstrumentState& instrument = instruments_[i];
+        model::DisplacementContact& contact = *state.contacts[i];
+        const Vec3 tip = state.transform.to_model(instrument.pose.tip_m);
+        const Vec3 previous =
+            instrument.has_previous_tip ? state.transform.to_model(instrument.previous_tip_m) : tip;
+        if (!contact.update(view, *state.grid, previous, tip).is_ok()) ++stats_.model_step_errors;
+        std::array<model::ImposedDisplacement, model::DisplacementContact::kMaxTargets> mine{};
+        const std::size_t count = contact.targets(view, state.rest_positions, tip, mine);
+        if (target_count + count > targets.size()) {
+          contact.release();
+          continue;
+        }
+        for (std::size_t k = 0; k < count; ++k) {
+          targets[target_count] = mine[k];
+          owner[target_count++] = i;
+        }
+      }
+      // Solve; a contact that would pull the tissue is released and the rest re-solved.
+      for (int attempt = 0; attempt < 2 && target_count > 0; ++attempt) {
+        std::array<Vec3, model::ModalModel::kMaxContacts> forces{};
+        if (!modal.solve_imposed(std::span(targets.data(), target_count),
+                                 std::span(forces.data(), target_count)).is_ok()) {
+          ++stats_.model_step_errors;
+          modal.clear_forces();
+          for (auto& contact : state.contacts) {
+            if (contact) contact->release();
+          }
+          target_count = 0;
+          break;
+        }
+        std::array<Vec3, kMaxInstruments> on_tissue{};
+        for (Vec3& force : on_tissue) force.setZero();
+        for (std::size_t k = 0; k < target_count; ++k) on_tissue[owner[k]] += forces[k];
+        bool released = false;
+        for (std::size_t i = 0; i < instruments_.size(); ++i) {
+          if (!state.contacts[i] || !state.contacts[i]->in_contact()) continue;
+          state.contacts[i]->observe_force(view, on_tissue[i]);
+          released = released || !state.contacts[i]->in_contact();
+        }
+        if (released && attempt == 0) {
+          modal.clear_forces();
+          std::size_t kept = 0;
+          for (std::size_t k = 0; k < target_count; ++k) {
+            if (state.contacts[owner[k]]->in_contact()) {
+              targets[kept] = targets[k];
+              owner[kept++] = owner[k];
+            }
+          }
+          target_count = kept;
+          continue;
+        }
+        for (std::size_t i = 0; i < instruments_.size(); ++i) {
+          if (!state.contacts[i] || !state.contacts[i]->in_contact()) continue;
+          instruments_[i].model_force_n -= state.transform.vector_to_world(on_tissue[i]);
+          instruments_[i].model_contact = true;
+        }
+        break;
+      }
+    }
+    if (!modal.step().is_ok()) ++stats_.model_step_errors;
+    if (near) {
+      refresh_surface(state, modal);
+    } else {
+      state.surface_ready = false;  // stale: rebuilt when a tool comes near
+    }
+  }
 }
 
 std::vector<std::array<float, 3>> HapticApp::catheter_positions_m(const std::string& name) const {

@@ -26,6 +26,8 @@
 #include "trainer/kinematics/trocar_kinematics.hpp"
 #include "trainer/loop/periodic_loop.hpp"
 #include "trainer/model/catheter.hpp"
+#include "trainer/model/bucket_grid.hpp"
+#include "trainer/model/displacement_contact.hpp"
 #include "trainer/model/image_loader.hpp"
 #include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
@@ -144,6 +146,29 @@ class HapticApp final : public loop::CycleTask {
     kinematics::JointVector velocity{};
     bool has_position = false;
     bool was_in_contact = false;
+    // This cycle's pose (sense_instrument) and the force the soft-tissue models put on the
+    // tip (contact_models), trainer frame.
+    kinematics::InstrumentPose pose{};
+    Eigen::Vector3f tip_velocity = Eigen::Vector3f::Zero();
+    Eigen::Vector3f previous_tip_m = Eigen::Vector3f::Zero();
+    bool has_previous_tip = false;
+    Eigen::Vector3f model_force_n = Eigen::Vector3f::Zero();
+    bool model_contact = false;
+  };
+  // Tool contact on one modal model: its deformed surface (rebuilt after every step), the
+  // bucket grid over it, and a displacement-driven contact per instrument touching it.
+  struct ModalContactState {
+    RigidTransform transform;
+    std::uint32_t touched_by_mask = 0;
+    std::span<const float> rest_positions;
+    std::span<const std::uint32_t> triangles;
+    std::span<float> deformed;  // 3n, model frame
+    std::optional<model::BucketGrid> grid;
+    std::array<std::optional<model::DisplacementContact>, kMaxInstruments> contacts{};
+    // The rest mesh's box grown by a margin: while no touching tool is inside it and no contact
+    // holds, the surface is not rebuilt (a tool far away costs nothing).
+    model::Aabb near_box{};
+    bool surface_ready = false;
   };
   struct ObjectState {
     config::ObjectKind kind = config::ObjectKind::plane;
@@ -157,7 +182,14 @@ class HapticApp final : public loop::CycleTask {
             std::size_t instrument_count, const config::DigitalConfig& digital) noexcept;
 
   bool read_inputs(const loop::CycleTiming& timing, safety::InputConditions& conditions) noexcept;
-  void update_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept;
+  static core::Expected<ModalContactState> make_modal_contact(
+      const config::SceneModelConfig& entry, const model::ModelImage& image,
+      std::size_t instrument_count, core::Arena& arena);
+  void sense_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept;
+  // Tool contacts on the modal models, their solve and step, the surfaces for the next cycle.
+  void contact_modal_models() noexcept;
+  void refresh_surface(ModalContactState& state, const model::ModalModel& modal) noexcept;
+  void render_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept;
   void write_outputs(bool armed) noexcept;
   void publish(const loop::CycleTiming& timing) noexcept;
   void zero_commands() noexcept;
@@ -178,6 +210,7 @@ class HapticApp final : public loop::CycleTask {
   std::span<InstrumentTelemetry> instrument_out_;
   // Models the scene names (modal ducts, catheters), their data in the arena; stepped every cycle.
   std::array<std::optional<model::ModalModel>, kMaxModels> modal_models_{};
+  std::array<ModalContactState, kMaxModels> modal_contacts_{};  // same index as modal_models_
   std::size_t modal_model_count_ = 0;
   struct CatheterState {
     std::optional<model::Catheter> catheter;
@@ -192,8 +225,8 @@ class HapticApp final : public loop::CycleTask {
   std::size_t catheter_count_ = 0;
   float catheter_period_s_ = 0.0F;  // the loop period: each cycle advances the chain by it
   std::vector<LoadedModelInfo> model_info_;  // setup-time description, never touched in the cycle
-  // Per model in scene order (as model_info_), from [[model]] position_m / rotation_deg.
-  // Not used by the cycle yet: contact will map tool points into each model's frame with it.
+  // Per model in scene order (as model_info_), from [[model]] position_m / rotation_deg; the
+  // modal contacts keep their own copy.
   std::array<RigidTransform, kMaxModels> model_transforms_{};
 
   AppStats stats_{};
