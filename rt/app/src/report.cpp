@@ -7,6 +7,15 @@ namespace trainer::app {
 
 namespace {
 
+const char* model_kind_text(config::ModelKind kind) {
+  switch (kind) {
+    case config::ModelKind::modal_shell: return "modal_shell";
+    case config::ModelKind::catheter: return "catheter";
+    case config::ModelKind::tet_tensor: return "tet_tensor";
+  }
+  return "unknown";
+}
+
 nlohmann::json percentiles(const core::LatencyHistogram& histogram) {
   return {
       {"count", histogram.count()},
@@ -60,53 +69,41 @@ nlohmann::json report_json(const RunResult& r) {
   }
   nlohmann::json models = nlohmann::json::array();
   for (const LoadedModelInfo& m : r.models) {
+    // Every kind: what it is, where it came from, what it costs, where the scene put it.
+    nlohmann::json entry = {{"name", m.name},
+                            {"kind", model_kind_text(m.kind)},
+                            {"definition", m.definition_path},
+                            {"arena_bytes", m.arena_bytes},
+                            {"position_m", m.position_m},
+                            {"rotation_deg", m.rotation_deg}};
     if (m.kind == config::ModelKind::catheter) {
-      nlohmann::json entry = {{"name", m.name},
-                              {"kind", "catheter"},
-                              {"definition", m.definition_path},
-                              {"arena_bytes", m.arena_bytes},
-                              {"particle_count", m.particle_count},
-                              {"stable_substep_s", m.stable_substep_s},
-                              {"substeps_per_period", m.substeps_per_period},
-                              {"max_substeps", m.max_substeps},
-                              {"hold_start", m.hold_start}};
+      entry.update({{"particle_count", m.particle_count},
+                    {"stable_substep_s", m.stable_substep_s},
+                    {"substeps_per_period", m.substeps_per_period},
+                    {"max_substeps", m.max_substeps},
+                    {"hold_start", m.hold_start}});
       if (!m.final_positions_m.empty()) {
         entry["final_root_position_m"] = m.final_positions_m.front();
         entry["final_tip_position_m"] = m.final_positions_m.back();
       }
-      models.push_back(std::move(entry));
-      continue;
-    }
-    if (m.kind == config::ModelKind::tet_tensor) {
-      models.push_back({{"name", m.name},
-                        {"kind", "tet_tensor"},
-                        {"definition", m.definition_path},
-                        {"arena_bytes", m.arena_bytes},
-                        {"image", m.image_path},
-                        {"image_checksum", m.image_checksum},
-                        {"image_bytes", m.image_bytes},
-                        {"node_count", m.node_count},
-                        {"contact_node_count", m.contact_node_count},
-                        {"stored_node_count", m.stored_node_count},
-                        {"max_contacts", m.max_contacts},
-                        {"quasi_nonlinear", m.quasi_nonlinear}});
-      continue;
-    }
-    models.push_back({{"name", m.name},
-                      {"kind", "modal_shell"},
-                      {"definition", m.definition_path},
-                      {"arena_bytes", m.arena_bytes},
-                      {"image", m.image_path},
-                      {"image_checksum", m.image_checksum},
-                      {"image_bytes", m.image_bytes},
-                      {"node_count", m.node_count},
-                      {"mode_count", m.mode_count},
+    } else {
+      // Image-backed kinds.
+      entry.update({{"image", m.image_path},
+                    {"image_checksum", m.image_checksum},
+                    {"image_bytes", m.image_bytes},
+                    {"node_count", m.node_count}});
+      if (m.kind == config::ModelKind::tet_tensor) {
+        entry.update({{"contact_node_count", m.contact_node_count},
+                      {"stored_node_count", m.stored_node_count},
+                      {"max_contacts", m.max_contacts},
+                      {"quasi_nonlinear", m.quasi_nonlinear}});
+      } else {
+        entry.update({{"mode_count", m.mode_count},
                       {"static_correction", m.static_correction},
                       {"prepared_time_step_s", m.prepared_time_step_s}});
-  }
-  for (std::size_t m = 0; m < r.models.size(); ++m) {  // every kind: placement in the scene
-    models[m]["position_m"] = r.models[m].position_m;
-    models[m]["rotation_deg"] = r.models[m].rotation_deg;
+      }
+    }
+    models.push_back(std::move(entry));
   }
   nlohmann::json fault_counts = nlohmann::json::object();
   for (const auto& [name, count] : r.fault_counts) fault_counts[name] = count;

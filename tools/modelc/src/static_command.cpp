@@ -46,6 +46,28 @@ nlohmann::json vector_json(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
 
+// The node with the largest translation |u| (the first three columns of any displacement table).
+struct LargestTranslation {
+  double magnitude_m = 0.0;
+  int node = 0;
+};
+template <class Table>
+LargestTranslation largest_translation(const Table& displacements) {
+  LargestTranslation largest;
+  for (Eigen::Index node = 0; node < displacements.rows(); ++node) {
+    const double magnitude = displacements.row(node).template head<3>().norm();
+    if (magnitude > largest.magnitude_m) largest = {magnitude, static_cast<int>(node)};
+  }
+  return largest;
+}
+
+void write_report(const std::string& path, const nlohmann::json& report) {
+  std::ofstream file(path);
+  if (!file) throw std::runtime_error(path + ": cannot open the report for writing");
+  file << report.dump(2) << "\n";
+  if (!file) throw std::runtime_error(path + ": write failed");
+}
+
 std::string hash_text(std::uint64_t hash) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%016llx", static_cast<unsigned long long>(hash));
@@ -235,15 +257,7 @@ void run_static_tet(const StaticOptions& options) {
   const offline::TetNodalLoads displacements = value_or_throw(solver.solve_nodal(nodal_loads));
   const double solve_s = seconds_since(solve_start);
 
-  double max_displacement_m = 0.0;
-  int max_node = 0;
-  for (Eigen::Index node = 0; node < displacements.rows(); ++node) {
-    const double magnitude = displacements.row(node).norm();
-    if (magnitude > max_displacement_m) {
-      max_displacement_m = magnitude;
-      max_node = static_cast<int>(node);
-    }
-  }
+  const auto [max_displacement_m, max_node] = largest_translation(displacements);
   nlohmann::json report;
   report["command"] = "static";
   report["inputs"] = inputs;
@@ -274,10 +288,7 @@ void run_static_tet(const StaticOptions& options) {
   report["max_displacement_m"] = max_displacement_m;
   report["max_displacement_node"] = max_node;
 
-  std::ofstream file(options.report_path);
-  if (!file) throw std::runtime_error(options.report_path + ": cannot open the report for writing");
-  file << report.dump(2) << "\n";
-  if (!file) throw std::runtime_error(options.report_path + ": write failed");
+  write_report(options.report_path, report);
 
   std::cout << "modelc static: " << mesh.nodes.rows() << " nodes, " << mesh.tetrahedra.rows()
             << " tetrahedra (tet4), " << assembled.dofs.free_count
@@ -366,15 +377,7 @@ void run_static(const StaticOptions& options) {
       value_or_throw(offline::ShellStaticSolver::create(shell));
   const offline::StaticSolution solution = value_or_throw(solver.solve(nodal_loads));
 
-  double max_displacement_m = 0.0;
-  int max_node = 0;
-  for (Eigen::Index node = 0; node < solution.node_displacements.rows(); ++node) {
-    const double magnitude = solution.node_displacements.row(node).head<3>().norm();
-    if (magnitude > max_displacement_m) {
-      max_displacement_m = magnitude;
-      max_node = static_cast<int>(node);
-    }
-  }
+  const auto [max_displacement_m, max_node] = largest_translation(solution.node_displacements);
 
   nlohmann::json report;
   report["command"] = "static";
@@ -412,10 +415,7 @@ void run_static(const StaticOptions& options) {
   report["max_displacement_m"] = max_displacement_m;
   report["max_displacement_node"] = max_node;
 
-  std::ofstream file(options.report_path);
-  if (!file) throw std::runtime_error(options.report_path + ": cannot open the report for writing");
-  file << report.dump(2) << "\n";
-  if (!file) throw std::runtime_error(options.report_path + ": write failed");
+  write_report(options.report_path, report);
 
   std::cout << "modelc static: " << mesh.nodes.rows() << " nodes, " << mesh.triangles.rows()
             << " triangles, " << shell.dofs.free_count()
