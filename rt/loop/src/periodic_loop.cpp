@@ -30,11 +30,16 @@ void PeriodicLoop::run(CycleTask& task, const std::atomic<bool>& stop) noexcept 
   std::int64_t deadline_ns = clock_.now_ns() + period_ns;
   std::int64_t previous_wake_ns = 0;
   std::uint32_t overrun_streak = 0;
+  // Grid points an overrun passed over count as skipped once the cycle after them runs; a run
+  // that ends (stop or max_cycles) right after an overrun skipped nothing, it just ended.
+  std::uint64_t pending_skipped = 0;
 
   for (std::uint64_t cycle_index = 0;
        settings_.max_cycles == 0 || cycle_index < settings_.max_cycles; ++cycle_index) {
     // Acquire pairs with the setter's store so anything it wrote before stopping is visible.
     if (stop.load(std::memory_order_acquire)) break;
+    stats_.skipped_periods += pending_skipped;
+    pending_skipped = 0;
 
     clock_.sleep_until_ns(deadline_ns);
     const std::int64_t wake_ns = clock_.now_ns();
@@ -68,7 +73,7 @@ void PeriodicLoop::run(CycleTask& task, const std::atomic<bool>& stop) noexcept 
       // p = late_ns / period >= 1; the first grid point strictly after it is p + 1 periods on,
       // and the p grid points in between are skipped.
       const std::int64_t periods_passed = late_ns / period_ns;
-      stats_.skipped_periods += static_cast<std::uint64_t>(periods_passed);
+      pending_skipped = static_cast<std::uint64_t>(periods_passed);
       deadline_ns += (periods_passed + 1) * period_ns;
     } else {
       overrun_streak = 0;

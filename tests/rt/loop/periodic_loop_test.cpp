@@ -186,6 +186,21 @@ TEST(PeriodicLoop, StepEndingExactlyOnALaterGridPointSkipsIt) {
   EXPECT_EQ(task.timings()[1].deadline_ns, kStartNs + 4 * kPeriodNs);
 }
 
+TEST(PeriodicLoop, OverrunInTheLastCycleSkipsNothing) {
+  // The run ends after cycle 1's 2.5-period step: an overrun, but no later deadline was passed
+  // over by a cycle that ran, so the deadlines the task saw have no gap and nothing is skipped.
+  core::ManualClock clock(kStartNs);
+  ScriptedTask task(clock, 0, {0, 2'500'000});
+  PeriodicLoop loop(clock, settings(2));
+  const std::atomic<bool> stop{false};
+  loop.run(task, stop);
+
+  EXPECT_EQ(loop.stats().overruns, 1u);
+  EXPECT_EQ(loop.stats().skipped_periods, 0u);
+  ASSERT_EQ(task.timings().size(), 2u);
+  EXPECT_EQ(task.timings()[1].deadline_ns - task.timings()[0].deadline_ns, kPeriodNs);
+}
+
 TEST(PeriodicLoop, LateWakeWithShortStepIsAnOverrun) {
   // The policy judges the end of the step against the next deadline, however the time was
   // lost: a 0.95-period wake latency plus a 0.1-period step ends 1.05 periods after deadline.

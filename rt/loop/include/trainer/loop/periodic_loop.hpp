@@ -15,7 +15,9 @@
 //     keeps its outputs at zero and the statistics continue;
 //   * no catch-up burst: the next deadline is the first one on the original grid
 //     (deadline_n + k * period_ns, k >= 1) strictly after end_ns; the k - 1 grid points
-//     passed over are counted in skipped_periods;
+//     passed over are counted in skipped_periods when the next cycle runs (a run that ends
+//     right after an overrun skipped nothing: skipped_periods always equals the gaps between
+//     the deadlines the task saw);
 //   * the next cycle runs with the measured dt (wake to wake), not the nominal period, so
 //     integrators in the task see the time that really passed.
 // A non-ok Status from run_cycle is only counted (cycle_errors): the task owns its faults.
