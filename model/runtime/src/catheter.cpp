@@ -114,13 +114,22 @@ core::Expected<Catheter> Catheter::create(const CatheterParams& params, const Ca
                            std::pair{&catheter.external_n_, "catheter external forces"},
                            std::pair{&catheter.hold_targets_m_, "catheter hold targets"},
                            std::pair{&catheter.saved_positions_, "catheter saved positions"},
-                           std::pair{&catheter.saved_velocities_, "catheter saved velocities"}}) {
+                           std::pair{&catheter.saved_velocities_, "catheter saved velocities"},
+                           std::pair{&catheter.hold_forces_n_, "catheter hold forces"}}) {
     auto taken = take(*out, what);
     if (!taken) return std::move(taken).error();
   }
   auto held = arena.allocate_array<std::uint8_t>(n, "catheter held flags");
   if (!held) return std::move(held).error();
   catheter.held_ = held.value();
+  if (setup.max_contact_planes > 0) {
+    auto planes = arena.allocate_array<ContactPlane>(setup.max_contact_planes, "catheter contact planes");
+    if (!planes) return std::move(planes).error();
+    catheter.planes_ = planes.value();
+    auto plane_forces = arena.allocate_array<Vec3>(setup.max_contact_planes, "catheter contact plane forces");
+    if (!plane_forces) return std::move(plane_forces).error();
+    catheter.plane_forces_n_ = plane_forces.value();
+  }
   catheter.reset();
   return catheter;
 }
@@ -150,6 +159,42 @@ core::Status Catheter::release(std::uint32_t particle) noexcept {
   return core::Status::ok();
 }
 
+float Catheter::max_contact_stiffness_n_per_m() const noexcept {
+  const float substep_s = stable_substep_s_;
+  return mass_kg_ / (substep_s * substep_s);
+}
+
+core::Status Catheter::set_contact_planes(std::span<const ContactPlane> planes) noexcept {
+  plane_count_ = 0;
+  const float stiffness_limit = max_contact_stiffness_n_per_m();
+  for (const ContactPlane& plane : planes) {
+    if (plane.particle_a >= count_ || plane.particle_b >= count_ || !(plane.weight_b >= 0.0F) ||
+        !(plane.weight_b <= 1.0F)) {
+      return {core::StatusCode::invalid_argument, "catheter: contact plane names an unknown particle or weight"};
+    }
+    if (!finite_vector(plane.point_m) || !finite_vector(plane.normal) ||
+        !finite_vector(plane.surface_velocity_m_per_s) || !std::isfinite(plane.reach_m) ||
+        !std::isfinite(plane.stiffness_n_per_m) || !std::isfinite(plane.damping_n_s_per_m) ||
+        !std::isfinite(plane.max_force_n)) {
+      return {core::StatusCode::numeric_error, "catheter: non-finite contact plane"};
+    }
+    if (std::fabs(plane.normal.norm() - 1.0F) > 1e-3F || plane.reach_m < 0.0F ||
+        !(plane.stiffness_n_per_m > 0.0F) || plane.stiffness_n_per_m > stiffness_limit ||
+        plane.damping_n_s_per_m < 0.0F || !(plane.max_force_n > 0.0F)) {
+      return {core::StatusCode::invalid_argument,
+              "catheter: contact plane normal not unit, negative reach/damping, or stiffness out of (0, limit]"};
+    }
+  }
+  const std::size_t kept = std::min(planes.size(), planes_.size());
+  std::copy_n(planes.begin(), kept, planes_.begin());
+  plane_count_ = kept;
+  for (std::size_t k = 0; k < kept; ++k) plane_forces_n_[k].setZero();
+  if (kept < planes.size()) {
+    return {core::StatusCode::capacity_exceeded, "catheter: more contact planes than max_contact_planes"};
+  }
+  return core::Status::ok();
+}
+
 void Catheter::clamp_start(bool clamped) noexcept {
   stiffness_.root_clamped = clamped;
   held_[0] = clamped ? 1 : 0;
@@ -163,20 +208,40 @@ void Catheter::reset() noexcept {
     external_n_[i].setZero();
     hold_targets_m_[i].setZero();
     held_[i] = 0;
+    hold_forces_n_[i].setZero();
   }
   stiffness_.root_clamped = false;
+  plane_count_ = 0;
 }
 
-bool Catheter::substep(float dt_s) noexcept {
+bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
   const std::span<Vec3> forces = forces_.first(count_);
   for (std::uint32_t i = 0; i < count_; ++i) forces[i] = external_n_[i] - damping_n_s_per_m_ * velocities_[i];
   add_chain_forces<float>(std::span<const Vec3>(positions_.data(), count_), stiffness_, forces);
+  for (std::size_t k = 0; k < plane_count_; ++k) {
+    const ContactPlane& plane = planes_[k];
+    const float w = plane.weight_b;
+    const Vec3 point = (1.0F - w) * positions_[plane.particle_a] + w * positions_[plane.particle_b];
+    const float depth = plane.reach_m - (point - plane.point_m).dot(plane.normal);
+    if (!(depth > 0.0F)) continue;
+    const Vec3 velocity = (1.0F - w) * velocities_[plane.particle_a] + w * velocities_[plane.particle_b];
+    float magnitude = plane.stiffness_n_per_m * depth -
+                      plane.damping_n_s_per_m * (velocity - plane.surface_velocity_m_per_s).dot(plane.normal);
+    magnitude = std::clamp(magnitude, 0.0F, plane.max_force_n);
+    const Vec3 force = magnitude * plane.normal;
+    forces[plane.particle_a] += (1.0F - w) * force;
+    if (w != 0.0F) forces[plane.particle_b] += w * force;
+    plane_forces_n_[k] += fraction * force;
+  }
   const float dt_over_mass = dt_s / mass_kg_;
   bool finite = true;
   for (std::uint32_t i = 0; i < count_; ++i) {
     if (held_[i] != 0) {
-      positions_[i] = hold_targets_m_[i];
-      velocities_[i].setZero();
+      // The pin balances every force on the particle: the holder feels them.
+      hold_forces_n_[i] += fraction * forces[i];
+      const Vec3 start = saved_positions_[i];
+      positions_[i] = hold_step >= 1.0F ? hold_targets_m_[i] : Vec3(start + hold_step * (hold_targets_m_[i] - start));
+      velocities_[i] = (hold_targets_m_[i] - start) / (dt_s / fraction);
       continue;
     }
     velocities_[i] += dt_over_mass * forces[i];  // eq. 28: v_{t+Δt} = v_t + Δt a_t
@@ -195,12 +260,19 @@ core::Status Catheter::step(float period_s) noexcept {
   }
   std::copy_n(positions_.begin(), count_, saved_positions_.begin());
   std::copy_n(velocities_.begin(), count_, saved_velocities_.begin());
+  for (std::uint32_t i = 0; i < count_; ++i) hold_forces_n_[i].setZero();
+  for (std::size_t k = 0; k < plane_count_; ++k) plane_forces_n_[k].setZero();
   const float dt_s = period_s / static_cast<float>(substeps);
+  const float fraction = 1.0F / static_cast<float>(substeps);
   bool finite = true;
-  for (std::uint64_t k = 0; k < substeps && finite; ++k) finite = substep(dt_s);
+  for (std::uint64_t k = 0; k < substeps && finite; ++k) {
+    finite = substep(dt_s, fraction, static_cast<float>(k + 1) * fraction);
+  }
   if (!finite) {
     std::copy_n(saved_positions_.begin(), count_, positions_.begin());
     std::copy_n(saved_velocities_.begin(), count_, velocities_.begin());
+    for (std::uint32_t i = 0; i < count_; ++i) hold_forces_n_[i].setZero();
+    for (std::size_t k = 0; k < plane_count_; ++k) plane_forces_n_[k].setZero();
     return {core::StatusCode::numeric_error, "catheter: state became non-finite; restored the last good state"};
   }
   return core::Status::ok();

@@ -105,6 +105,8 @@ core::Expected<ParticleSurfaceContact> ParticleSurfaceContact::create(
       std::min<std::size_t>(3 * static_cast<std::size_t>(settings.max_contacts), settings.max_nodes);
   auto node_forces = arena.allocate_array<NodeForce>(node_force_capacity, "particle contact node forces");
   if (!node_forces) return fail(node_forces.error());
+  auto records = arena.allocate_array<ParticleContactRecord>(settings.max_contacts, "particle contact records");
+  if (!records) return fail(records.error());
   auto node_slot = arena.allocate_array<std::uint32_t>(settings.max_nodes, "particle contact node slots");
   if (!node_slot) return fail(node_slot.error());
   auto candidate_ids = arena.allocate_array<std::uint32_t>(settings.max_candidates, "particle contact candidates");
@@ -115,6 +117,7 @@ core::Expected<ParticleSurfaceContact> ParticleSurfaceContact::create(
   ParticleSurfaceContact contact;
   contact.settings_ = settings;
   contact.particle_forces_n_ = particle_forces.value();
+  contact.records_ = records.value();
   contact.node_forces_ = node_forces.value();
   contact.node_slot_ = node_slot.value();
   std::fill(contact.node_slot_.begin(), contact.node_slot_.end(), kNoSlot);
@@ -193,6 +196,7 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
       if (status.is_ok() && !particle_status.is_ok()) status = particle_status;
     }
   }
+  out.contacts = {records_.data(), contact_count_};
   out.particle_forces_n = {particle_forces_n_.data(), particle_count_};
   out.node_forces = {node_forces_.data(), node_force_count_};
   out.contact_count = contact_count_;
@@ -340,7 +344,14 @@ core::Status ParticleSurfaceContact::apply_contact(std::size_t particle, std::ui
   if (!std::isfinite(magnitude) || !is_finite(normal)) {
     return {core::StatusCode::numeric_error, "particle contact: non-finite contact force"};
   }
-  ++contact_count_;
+  ParticleContactRecord& record = records_[contact_count_++];
+  record.particle = static_cast<std::uint32_t>(particle);
+  record.vertices = {contact.vertices[0], contact.vertices[1], contact.vertices[2]};
+  record.barycentric = contact.barycentric;
+  record.point_m = contact.point_m;
+  record.normal = normal;
+  record.distance_m = contact.distance_m;
+  record.surface_velocity_m_per_s = velocity - relative_velocity;
   if (!(magnitude > 0.0F)) return core::Status::ok();  // separating fast: the damper never pulls
   if (magnitude > settings_.max_force_n) {
     magnitude = settings_.max_force_n;

@@ -178,6 +178,20 @@ TEST(ParticleSurfaceContact, InsideParticlePressesTheInnerWallTowardsTheAxis) {
           << "depth " << depth << " z " << z;
       EXPECT_LE(scene.out.node_forces.size(), 3U);
       expect_action_equals_reaction(scene, {centre});
+      // The record describes the same contact: the particle, its distance to the mid-surface
+      // (reach − depth), the normal towards the axis and a closest point that is the
+      // barycentric mix of the recorded vertices.
+      ASSERT_EQ(scene.out.contacts.size(), 1U);
+      const ParticleContactRecord& record = scene.out.contacts[0];
+      EXPECT_EQ(record.particle, 0U);
+      EXPECT_NEAR(record.distance_m, kReach - depth, 2e-6F);
+      EXPECT_LT((record.normal + outward).norm(), 1e-3F);
+      Vec3 mixed = Vec3::Zero();
+      for (std::size_t corner = 0; corner < 3; ++corner) {
+        mixed += record.barycentric[static_cast<Eigen::Index>(corner)] * scene.node(record.vertices[corner]);
+      }
+      EXPECT_LT((mixed - record.point_m).norm(), 1e-6F);
+      EXPECT_LT((record.point_m + record.distance_m * record.normal - centre).norm(), 2e-6F);
     }
   }
   // On the axis and just short of touching: nothing.

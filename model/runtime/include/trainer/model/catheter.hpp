@@ -61,6 +61,30 @@ struct CatheterSetup {
   Eigen::Vector3f direction = Eigen::Vector3f::UnitX();         // rest tangent, normalised here
   float haptic_period_s = 1e-3F;
   std::uint32_t max_substeps = 64;  // most substeps one haptic period may cost
+  std::uint32_t max_contact_planes = 64;  // contact planes one step may take (set_contact_planes)
+};
+
+// One unilateral contact held for one step(), evaluated at every substep (so a stiff contact
+// stays stable at the substep, not the haptic period, while collision detection runs once per
+// period). The catheter's material point x = (1 − w) p_a + w p_b (w = weight_b; a point on
+// the segment between two particles, or a particle itself with w = 0) must stay at least
+// reach_m from the plane through point_m with unit normal `normal` on its positive side:
+//   depth = reach_m − (x − point_m)·normal,
+//   f = k·depth − b·((ẋ − surface_velocity)·normal), clipped to [0, max_force_n], f = 0 when
+//   depth ≤ 0; the force f·normal goes (1 − w) to particle a and w to particle b.
+// The plane is the contact's tangent plane at detection time (a duct wall, a jaw's surface);
+// it does not move during the step (its velocity only enters the damper).
+struct ContactPlane {
+  std::uint32_t particle_a = 0;
+  std::uint32_t particle_b = 0;
+  float weight_b = 0.0F;  // [0, 1]
+  Eigen::Vector3f point_m = Eigen::Vector3f::Zero();
+  Eigen::Vector3f normal = Eigen::Vector3f::UnitZ();  // unit, towards the catheter
+  Eigen::Vector3f surface_velocity_m_per_s = Eigen::Vector3f::Zero();
+  float reach_m = 0.0F;            // ≥ 0: the two radii (catheter + surface half-thickness/tool)
+  float stiffness_n_per_m = 0.0F;  // > 0, ≤ Catheter::max_contact_stiffness_n_per_m()
+  float damping_n_s_per_m = 0.0F;  // ≥ 0
+  float max_force_n = 0.0F;        // > 0
 };
 
 // Spring constants of the chain, in the precision of the caller (float at run time, double in
@@ -190,6 +214,29 @@ class Catheter {
   core::Status release(std::uint32_t particle) noexcept;
   // Clamped start: particle 0 at its rest position, root hinge along the rest direction.
   void clamp_start(bool clamped) noexcept;
+  // A held particle moves in a straight line from where it is at the start of step() to its
+  // target, reaching it at the last substep, with the matching velocity (a jaw carrying the
+  // catheter drags it smoothly instead of jumping it once per period). hold_forces_n()[i] is
+  // the mean force the catheter put on the holder of particle i over the last step() (the
+  // chain, external and damping forces the pin balanced): what the jaws feel. Zero if free.
+  std::span<const Vec3> hold_forces_n() const noexcept { return {hold_forces_n_.data(), count_}; }
+
+  // Replaces the contact planes used by the following step() calls (they persist until set
+  // again; an empty span removes them). Refuses the whole set (nothing replaced, the old set
+  // cleared) when a plane names an unknown particle, has a weight outside [0, 1], a
+  // non-finite or non-unit normal (|n| off 1 by > 1e-3), a non-finite value, a negative
+  // reach/damping, a non-positive max force, or a stiffness beyond
+  // max_contact_stiffness_n_per_m() (invalid_argument / numeric_error); more planes than
+  // max_contact_planes keeps the first ones and returns capacity_exceeded.
+  core::Status set_contact_planes(std::span<const ContactPlane> planes) noexcept;
+  std::size_t contact_plane_count() const noexcept { return plane_count_; }
+  // Mean force (N) each plane put on the catheter over the last step(), in set order.
+  std::span<const Vec3> contact_plane_forces_n() const noexcept {
+    return {plane_forces_n_.data(), plane_count_};
+  }
+  // The stiffest contact the substep keeps stable alongside the chain: m / Δt_sub² (ω Δt ≤ 1
+  // for the contact spring alone).
+  float max_contact_stiffness_n_per_m() const noexcept;
 
   // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps of eq. 28.
   // Refuses (state unchanged) a non-positive/non-finite period or one needing more substeps
@@ -215,7 +262,9 @@ class Catheter {
 
  private:
   Catheter() = default;
-  bool substep(float dt_s) noexcept;  // false if the state became non-finite
+  // false if the state became non-finite. `fraction` is this substep's share of the step
+  // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
+  bool substep(float dt_s, float fraction, float hold_step) noexcept;
 
   std::uint32_t count_ = 0;
   float mass_kg_ = 0.0F;
@@ -236,6 +285,10 @@ class Catheter {
   std::span<std::uint8_t> held_;     // 1 = pinned
   std::span<Vec3> saved_positions_;  // last good state (start of step())
   std::span<Vec3> saved_velocities_;
+  std::span<Vec3> hold_forces_n_;    // mean over the last step, per particle
+  std::span<ContactPlane> planes_;   // max_contact_planes
+  std::span<Vec3> plane_forces_n_;   // mean over the last step, per plane
+  std::size_t plane_count_ = 0;
 };
 
 }  // namespace trainer::model

@@ -39,6 +39,7 @@
 // SI; every position in the mesh's (model) frame.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -80,8 +81,22 @@ struct NodeForce {
   Vec3 force_n = Vec3::Zero();
 };
 
+// One kept particle–patch contact, as found (whatever force it gave): enough for a caller
+// that evaluates the contact itself at a finer step (the catheter's substeps, through
+// model::ContactPlane) and returns the reaction to the three vertices.
+struct ParticleContactRecord {
+  std::uint32_t particle = 0;
+  std::array<std::uint32_t, 3> vertices{};
+  Vec3 barycentric = Vec3::Zero();  // of point_m in the triangle
+  Vec3 point_m = Vec3::Zero();      // closest point on the mid-surface
+  Vec3 normal = Vec3::UnitZ();      // unit, from point_m towards the particle's side
+  float distance_m = 0.0F;          // |centre − point_m|
+  Vec3 surface_velocity_m_per_s = Vec3::Zero();  // of point_m (zero without surface velocities)
+};
+
 // Results of the last compute(): views into the object's storage, valid until the next call.
 struct ParticleContactOutput {
+  std::span<const ParticleContactRecord> contacts;  // one per kept contact, contact_count of them
   std::span<const Vec3> particle_forces_n;  // one per particle, in input order
   std::span<const NodeForce> node_forces;   // merged reactions, Σ = −Σ particle forces
   std::uint32_t contact_count = 0;          // kept contacts (≤ max_contacts)
@@ -146,6 +161,7 @@ class ParticleSurfaceContact {
 
   ParticleContactSettings settings_{};
   std::span<Vec3> particle_forces_n_;
+  std::span<ParticleContactRecord> records_;  // max_contacts
   std::span<NodeForce> node_forces_;        // 3 · max_contacts entries at most
   std::span<std::uint32_t> node_slot_;      // per node: index in node_forces_, or kNoSlot
   std::span<std::uint32_t> candidate_ids_;  // grid query output
