@@ -2,7 +2,8 @@
 # The README's two entry points.
 #   tools/bootstrap.sh run   install dependencies, build (release), build the model images the
 #                            scene names (modelc build), run the main job: the default scene
-#                            on the simulated device, report in out/
+#                            on the simulated device (config/scenes/cbd.toml: the scripted
+#                            catheter insertion), report in out/
 #   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
 #                            suite, the ASan+UBSan unit tests and the TSan concurrency tests
 # Extra arguments after `run` go to the trainer (e.g. --scene FILE --seconds 5).
@@ -29,7 +30,7 @@ case "$mode" in
     build release trainer modelc
     mkdir -p out
     args=("$@")
-    scene=config/scenes/duct.toml
+    scene=config/scenes/cbd.toml
     for ((i = 0; i < ${#args[@]}; ++i)); do
       if [ "${args[$i]}" = "--scene" ] && [ $((i + 1)) -lt ${#args[@]} ]; then scene=${args[$((i + 1))]}; fi
     done

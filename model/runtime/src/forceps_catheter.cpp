@@ -126,8 +126,11 @@ core::Status ForcepsCatheterContact::prepare(const ForcepsShape& shape, Catheter
     }
     const Vec3 point = (1.0F - grasped_weight_) * targets[0] + grasped_weight_ * targets[1];
     update_squeeze(shape, point, jaw_reach);
-    if (squeeze_n_[0] <= 0.0F || squeeze_n_[1] <= 0.0F) drop_grasp(catheter);  // a jaw let go
-  } else if (regrasp_wait_ == 0 && particle_count >= 2) {
+    if (squeeze_n_[0] <= 0.0F || squeeze_n_[1] <= 0.0F) {  // a jaw let go: the jaws are opening
+      drop_grasp(catheter);
+      regrasp_wait_ = settings_.regrasp_delay_cycles;  // no re-grasp flicker while they open
+    }
+  } else if (regrasp_wait_ == 0 && particle_count >= 2 && shape.grip_rad < previous_grip_rad_) {
     // Both jaws on the catheter (same or neighbouring segments): grasp what jaw 0 touches.
     std::array<float, 2> best_distance{std::numeric_limits<float>::max(), std::numeric_limits<float>::max()};
     std::array<std::uint32_t, 2> best_segment{0, 0};
@@ -148,6 +151,7 @@ core::Status ForcepsCatheterContact::prepare(const ForcepsShape& shape, Catheter
                                                                 : best_segment[1] - best_segment[0];
     if (best_distance[0] < jaw_reach && best_distance[1] < jaw_reach && gap <= 1) {
       grasping_ = true;
+      grasp_age_cycles_ = 0;
       ++grasp_count_;
       grasped_segment_ = best_segment[0];
       grasped_weight_ = best_t[0];
@@ -162,6 +166,7 @@ core::Status ForcepsCatheterContact::prepare(const ForcepsShape& shape, Catheter
     }
   }
 
+  previous_grip_rad_ = shape.grip_rad;
   core::Status status = core::Status::ok();
   const std::size_t capacity = std::min(planes.size(), kMaxPlanes);
   for (std::size_t s = 0; s < axes.size(); ++s) {
@@ -215,7 +220,9 @@ core::Status ForcepsCatheterContact::collect(const ForcepsShape& shape, Catheter
   // pushing it away from the grasped point.
   const Vec3 pull = catheter.hold_forces_n()[grasped_segment_] + catheter.hold_forces_n()[grasped_segment_ + 1];
   const float total_squeeze = squeeze_n_[0] + squeeze_n_[1];
-  if (!finite(pull) || pull.norm() > settings_.friction_coefficient * total_squeeze) {
+  const bool settled = grasp_age_cycles_ >= settings_.grasp_settle_cycles;
+  if (grasp_age_cycles_ < settings_.grasp_settle_cycles) ++grasp_age_cycles_;
+  if (!finite(pull) || (settled && pull.norm() > settings_.friction_coefficient * total_squeeze)) {
     drop_grasp(catheter);  // slips out of the jaws
     ++slip_count_;
     regrasp_wait_ = settings_.regrasp_delay_cycles;

@@ -44,7 +44,7 @@ static_assert(config::kMaxCatheterParticles == model::Catheter::kMaxParticles,
 
 // The chain from its configuration: one loop period per cycle, the definition's budget.
 core::Expected<model::Catheter> create_catheter(const config::CatheterConfig& cfg, float period_s,
-                                                core::Arena& arena) {
+                                                std::uint32_t plane_capacity, core::Arena& arena) {
   model::CatheterParams params;
   params.length_m = static_cast<float>(cfg.length_m);
   params.outer_radius_m = static_cast<float>(cfg.outer_radius_m);
@@ -58,6 +58,7 @@ core::Expected<model::Catheter> create_catheter(const config::CatheterConfig& cf
   setup.direction = to_vec3(cfg.direction);
   setup.haptic_period_s = period_s;
   setup.max_substeps = cfg.max_substeps;
+  setup.max_contact_planes = plane_capacity;
   return model::Catheter::create(params, setup, arena);
 }
 
@@ -96,12 +97,57 @@ core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDe
   return settings;
 }
 
+// Wall contacts kept per catheter particle and modal model (a particle squeezed between two
+// walls has two patches).
+constexpr std::uint32_t kWallContactsPerParticle = 2;
+// Catheter–wall contacts are found this far beyond touching, so a contact that closes during
+// the period is already a plane the substeps evaluate (more than a period's travel at 1 m/s).
+constexpr float kWallDetectionMarginM = 0.001F;
+// The instrument's capsules against catheters (a 5 mm instrument, jaws tapering to 2 mm).
+constexpr float kShaftRadiusM = 0.0025F;
+constexpr float kJawRadiusM = 0.001F;
+
 // The forceps tip as seen by soft-tissue contact: a sphere of this radius at the closed jaws'
 // tip (jaws of a 5 mm instrument taper to about 2 mm).
 constexpr float kForcepsTipRadiusM = 0.001F;
 // How far outside a model's rest mesh a tool tip must be for the model's surface to be left
 // stale: more than the model deforms plus one cycle of tool travel.
 constexpr float kSurfaceMarginM = 0.02F;
+
+}  // namespace
+
+// The instrument's segments as the catheter contact sees them.
+model::ForcepsShape HapticApp::forceps_shape(const InstrumentState& instrument) noexcept {
+  const kinematics::InstrumentPose& pose = instrument.pose;
+  model::ForcepsShape shape;
+  shape.shaft_start_m = pose.shaft_start_m;
+  shape.hinge_m = pose.hinge_m;
+  shape.jaw_tips_m = pose.jaw_tips_m;
+  shape.direction = pose.direction;
+  shape.opening_direction = pose.opening_direction;
+  shape.grip_rad = instrument.position[kinematics::kGrip];
+  shape.velocity_m_per_s = instrument.tip_velocity;
+  return shape;
+}
+
+// Merges a catheter's reaction on one node into the model's pending loads; false when the
+// model's load capacity is full (the load is dropped).
+bool HapticApp::add_catheter_load(ModalContactState& wall, std::uint32_t node, const Vec3& force_n) noexcept {
+  for (std::size_t k = 0; k < wall.catheter_load_count; ++k) {
+    if (wall.catheter_loads[k].node == node) {
+      wall.catheter_loads[k].force_n += force_n;
+      return true;
+    }
+  }
+  if (wall.catheter_load_count >= wall.catheter_loads.size()) return false;
+  wall.catheter_loads[wall.catheter_load_count++] = model::NodeForce{node, force_n};
+  return true;
+}
+
+// Half the shell's thickness: the wall surface's distance from the mid-surface mesh.
+float HapticApp::wall_half_thickness(const ModalContactState& wall) noexcept { return wall.half_thickness_m; }
+
+namespace {
 
 // What the report says of a model loaded from an image, whatever its kind.
 LoadedModelInfo image_model_info(const config::SceneModelConfig& entry,
@@ -220,7 +266,14 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     const config::ModelDefinition& definition = entry.definition;
     const std::size_t arena_before = arena.used_bytes();
     if (definition.kind == config::ModelKind::catheter) {
-      auto created = create_catheter(definition.catheter, app->catheter_period_s_, arena);
+      const auto modal_count = static_cast<std::uint32_t>(
+          std::count_if(scene.models.begin(), scene.models.end(), [](const config::SceneModelConfig& other) {
+            return other.definition.kind == config::ModelKind::modal_shell;
+          }));
+      const std::uint32_t plane_capacity =
+          modal_count * kWallContactsPerParticle * definition.catheter.particle_count +
+          static_cast<std::uint32_t>(entry.touched_by.size() * model::ForcepsCatheterContact::kMaxPlanes);
+      auto created = create_catheter(definition.catheter, app->catheter_period_s_, plane_capacity, arena);
       if (!created) {
         return core::make_error(where + ": model '" + entry.name + "' (" +
                                 definition.source_path.string() + "): " + created.error().message);
@@ -242,6 +295,8 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
       info.substeps_per_period = state.catheter->substeps_per_period();
       info.max_substeps = definition.catheter.max_substeps;
       info.hold_start = definition.catheter.hold_start;
+      info.has_insertion_goal = entry.insertion.has_value();
+      info.insertion_target_depth_m = entry.insertion ? entry.insertion->target_depth_m : 0.0;
       app->model_info_.push_back(std::move(info));
       continue;
     }
@@ -288,17 +343,39 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
       return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
                               "): " + modal.error().message);
     }
-    auto contact_state = make_modal_contact(entry, *image, scene.instruments.size(), arena);
+    const bool scene_has_catheter =
+        std::any_of(scene.models.begin(), scene.models.end(), [](const config::SceneModelConfig& other) {
+          return other.definition.kind == config::ModelKind::catheter;
+        });
+    auto contact_state = make_modal_contact(entry, *image, scene.instruments.size(), scene_has_catheter, arena);
     if (!contact_state) {
       return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
                               "): " + contact_state.error().message);
     }
     app->modal_contacts_[app->modal_model_count_] = std::move(contact_state).value();
     app->modal_models_[app->modal_model_count_++].emplace(std::move(*modal));
+    app->modal_names_.push_back(entry.name);
     LoadedModelInfo info = image_model_info(entry, definition, *image, arena.used_bytes() - arena_before);
     info.mode_count = metadata.mode_count;
     info.static_correction = metadata.static_correction != 0;
     app->model_info_.push_back(std::move(info));
+  }
+  // Catheter contacts last: they need every modal model's grid, whatever the scene's order.
+  {
+    std::size_t catheter = 0;
+    for (const config::SceneModelConfig& entry : scene.models) {
+      if (entry.definition.kind != config::ModelKind::catheter) continue;
+      const std::size_t arena_before = arena.used_bytes();
+      auto added = app->add_catheter_contacts(entry, app->catheters_[catheter], arena);
+      if (!added) {
+        return core::make_error(where + ": model '" + entry.name + "' (" +
+                                entry.definition.source_path.string() + "): " + added.error().message);
+      }
+      for (LoadedModelInfo& info : app->model_info_) {
+        if (info.name == entry.name) info.arena_bytes += arena.used_bytes() - arena_before;
+      }
+      ++catheter;
+    }
   }
   // Every entry above pushed exactly one info, so scene order is model_info_ order.
   for (std::size_t m = 0; m < scene.models.size(); ++m) {
@@ -395,7 +472,6 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
   InstrumentState& state = instruments_[index];
   const auto dt = static_cast<float>(timing.dt_s);
   const kinematics::InstrumentPose& pose = state.pose;
-  const float tip_distance = pose.insertion_m;
   const Vec3 tip_velocity = state.tip_velocity;
 
   Vec3 requested = state.model_force_n;
@@ -413,11 +489,30 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
     }
   }
 
-  Vec3 force = safety_.limit_force(index, requested, dt, timing.cycle_index);
+  // The tip force (rigid objects, the duct) plus the catheter's forces on the shaft and jaws.
+  // The safety chain limits their total (magnitude and slew); every point force is scaled by
+  // the same factor so the efforts keep their proportions. Equal and opposite jaw squeezes do
+  // not add to the total: they are bounded per jaw by the catheter's max contact force.
+  Vec3 total = requested;
+  for (std::size_t k = 0; k < state.tool_force_count; ++k) total += state.tool_forces[k].force_n;
+  in_contact = in_contact || state.catheter_contact;
+  Vec3 force = safety_.limit_force(index, total, dt, timing.cycle_index);
   safety_.observe_power(index, force, tip_velocity, dt, timing.cycle_index);
+  const float total_norm = total.norm();
+  const float scale = total_norm > 1e-9F ? std::min(1.0F, force.norm() / total_norm) : 1.0F;
 
   kinematics::JointVector efforts{};
-  kinematics::TrocarKinematics::add_joint_efforts(pose, tip_distance, force, Vec3::Zero(), efforts);
+  const kinematics::InstrumentPoint tip_point{kinematics::Segment::shaft,
+                                              (pose.tip_m - pose.shaft_start_m).dot(pose.direction)};
+  state.kinematics.add_point_force_efforts(pose, tip_point, scale * requested, efforts);
+  for (std::size_t k = 0; k < state.tool_force_count; ++k) {
+    const model::ToolForce& tool_force = state.tool_forces[k];
+    const auto segment = tool_force.segment == model::ToolSegment::shaft  ? kinematics::Segment::shaft
+                         : tool_force.segment == model::ToolSegment::jaw0 ? kinematics::Segment::jaw0
+                                                                          : kinematics::Segment::jaw1;
+    state.kinematics.add_point_force_efforts(pose, kinematics::InstrumentPoint{segment, tool_force.along_m},
+                                             scale * tool_force.force_n, efforts);
+  }
   for (float effort : efforts) {
     if (!std::isfinite(effort)) safety_.latch(safety::Fault::non_finite, timing.cycle_index);
   }
@@ -495,6 +590,12 @@ void HapticApp::publish(const loop::CycleTiming& timing) noexcept {
 
 core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   ++stats_.cycles;
+  std::int64_t phase_start_ns = clock_.now_ns();
+  const auto end_phase = [&](CyclePhase phase) {
+    const std::int64_t now_ns = clock_.now_ns();
+    stats_.phase_ns[static_cast<std::size_t>(phase)].record(now_ns - phase_start_ns);
+    phase_start_ns = now_ns;
+  };
   if (reset_requested_.exchange(false, std::memory_order_acq_rel)) safety_.request_reset();
 
   safety::InputConditions conditions;
@@ -505,23 +606,16 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
     log_.write(timing.wake_ns, core::LogLevel::info, "armed at cycle {}", timing.cycle_index);
     for (InstrumentState& state : instruments_) state.velocity.fill(0.0F);
   }
+  end_phase(CyclePhase::hal_read);
 
   for (std::size_t i = 0; i < instruments_.size(); ++i) sense_instrument(i, timing);
+  end_phase(CyclePhase::kinematics);
   contact_modal_models();  // tool forces from the ducts, their step, next cycle's surfaces
+  end_phase(CyclePhase::modal_models);
+  step_catheters();        // walls, shafts and jaws on the catheters, grasps, their step
+  end_phase(CyclePhase::catheters);
   for (std::size_t i = 0; i < instruments_.size(); ++i) render_instrument(i, timing);
-  for (std::size_t c = 0; c < catheter_count_; ++c) {
-    CatheterState& state = catheters_[c];
-    model::Catheter& catheter = *state.catheter;
-    catheter.clear_forces();
-    bool ok = true;
-    if (state.has_gravity) {
-      for (std::uint32_t i = 0; i < catheter.particle_count(); ++i) {
-        ok = catheter.add_force(i, state.gravity_force_n).is_ok() && ok;
-      }
-    }
-    ok = catheter.step(catheter_period_s_).is_ok() && ok;
-    if (!ok) ++stats_.model_step_errors;
-  }
+  end_phase(CyclePhase::forces);
 
   const bool armed = safety_.armed();
   if (armed) ++stats_.armed_cycles;
@@ -540,13 +634,14 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   last_logged_faults_ = faults;
 
   publish(timing);
+  end_phase(CyclePhase::hal_write);
   return encoders_ok ? core::Status::ok()
                      : core::Status{core::StatusCode::io_error, "encoder read failed"};
 }
 
 core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
     const config::SceneModelConfig& entry, const model::ModelImage& image,
-    std::size_t instrument_count, core::Arena& arena) {
+    std::size_t instrument_count, bool with_grid, core::Arena& arena) {
   ModalContactState state;
   state.transform = RigidTransform::from_placement(entry.position_m, entry.rotation_deg);
   for (const std::size_t instrument : entry.touched_by) {
@@ -558,7 +653,9 @@ core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
   if (!deformed) return std::move(deformed).error();
   state.deformed = deformed.value();
   std::copy(state.rest_positions.begin(), state.rest_positions.end(), state.deformed.begin());
-  if (state.touched_by_mask == 0) return state;  // nothing touches it: no grid, no contacts
+  state.vertex_count = state.rest_positions.size() / 3;
+  state.half_thickness_m = static_cast<float>(0.5 * image.metadata().thickness_m);
+  if (state.touched_by_mask == 0 && !with_grid) return state;  // nothing touches it: no grid
 
   const auto vertex = [&](std::uint32_t node) {
     const std::size_t base = 3 * static_cast<std::size_t>(node);
@@ -620,11 +717,25 @@ void HapticApp::contact_modal_models() noexcept {
   for (std::size_t m = 0; m < modal_model_count_; ++m) {
     model::ModalModel& modal = *modal_models_[m];
     ModalContactState& state = modal_contacts_[m];
+    ModalModelStats& model_stats = stats_.modal_models[m];
     modal.clear_forces();
+    // The catheters' wall reactions from their last step (model frame).
+    Vec3 catheter_total = Vec3::Zero();
+    for (std::size_t k = 0; k < state.catheter_load_count; ++k) {
+      if (!modal.add_node_force(state.catheter_loads[k].node, state.catheter_loads[k].force_n).is_ok()) {
+        ++stats_.model_step_errors;
+      } else {
+        catheter_total += state.catheter_loads[k].force_n;
+      }
+    }
+    state.catheter_load_count = 0;
     std::array<model::ImposedDisplacement, model::ModalModel::kMaxContacts> targets{};
     std::array<std::size_t, model::ModalModel::kMaxContacts> owner{};
     std::size_t target_count = 0;
-    // Is any touching tool near, or any contact holding? Only then is the surface needed.
+    Vec3 tool_total = Vec3::Zero();
+    bool tool_touching = false;
+    // Is any touching tool or catheter particle near, or any contact holding? Only then is the
+    // surface needed.
     bool near = false;
     for (std::size_t i = 0; i < instruments_.size(); ++i) {
       if (!state.contacts[i]) continue;
@@ -632,6 +743,18 @@ void HapticApp::contact_modal_models() noexcept {
       const bool inside = (tip.array() >= state.near_box.min_m.array()).all() &&
                           (tip.array() <= state.near_box.max_m.array()).all();
       near = near || inside || state.contacts[i]->in_contact();
+    }
+    if (state.grid) {
+      for (std::size_t c = 0; c < catheter_count_ && !near; ++c) {
+        for (const Vec3& particle : catheters_[c].catheter->positions_m()) {
+          const Vec3 local = state.transform.to_model(particle);
+          if ((local.array() >= state.near_box.min_m.array()).all() &&
+              (local.array() <= state.near_box.max_m.array()).all()) {
+            near = true;
+            break;
+          }
+        }
+      }
     }
     if (near && !state.surface_ready) refresh_surface(state, modal);
     if (near && state.surface_ready) {
@@ -695,9 +818,19 @@ void HapticApp::contact_modal_models() noexcept {
           if (!state.contacts[i] || !state.contacts[i]->in_contact()) continue;
           instruments_[i].model_force_n -= state.transform.vector_to_world(on_tissue[i]);
           instruments_[i].model_contact = true;
+          tool_total += on_tissue[i];
+          tool_touching = true;
         }
         break;
       }
+    }
+    const Vec3 total = tool_total + catheter_total;
+    if (tool_touching) ++model_stats.tool_contact_cycles;
+    if (!total.isZero(0.0F) || tool_touching) {
+      const float magnitude = total.norm();
+      ++model_stats.loaded_cycles;
+      model_stats.force_sum_n += static_cast<double>(magnitude);
+      model_stats.peak_force_n = std::max(model_stats.peak_force_n, magnitude);
     }
     if (!modal.step().is_ok()) ++stats_.model_step_errors;
     if (near) {
@@ -706,6 +839,246 @@ void HapticApp::contact_modal_models() noexcept {
       state.surface_ready = false;  // stale: rebuilt when a tool comes near
     }
   }
+}
+
+core::Expected<void> HapticApp::add_catheter_contacts(const config::SceneModelConfig& entry,
+                                                      CatheterState& state, core::Arena& arena) {
+  model::Catheter& catheter = *state.catheter;
+  const config::CatheterConfig& cfg = entry.definition.catheter;
+  const std::uint32_t count = catheter.particle_count();
+  const float limit = catheter.max_contact_stiffness_n_per_m();
+  const auto check_stiffness = [&](double value, const char* key) -> core::Expected<void> {
+    if (static_cast<float>(value) > limit) {
+      return core::make_error("[contact] " + std::string(key) + " = " + std::to_string(value) +
+                              " N/m: expected at most " + std::to_string(limit) +
+                              " N/m, the stiffest contact this catheter's substep keeps stable "
+                              "(particle mass / substep^2)");
+    }
+    return {};
+  };
+  if (auto ok = check_stiffness(cfg.wall_stiffness_n_per_m, "wall_stiffness_n_per_m"); !ok) return ok;
+  if (auto ok = check_stiffness(cfg.tool_stiffness_n_per_m, "tool_stiffness_n_per_m"); !ok) return ok;
+  state.wall_stiffness_n_per_m = static_cast<float>(cfg.wall_stiffness_n_per_m);
+  state.wall_damping_n_s_per_m = static_cast<float>(cfg.wall_damping_n_s_per_m);
+  state.max_contact_force_n = static_cast<float>(cfg.max_contact_force_n);
+
+  std::size_t plane_capacity = 0;
+  for (std::size_t m = 0; m < modal_model_count_; ++m) {
+    const ModalContactState& wall = modal_contacts_[m];
+    if (!wall.grid) continue;
+    model::ParticleContactSettings settings;
+    settings.max_particles = count;
+    settings.max_contacts = kWallContactsPerParticle * count;
+    settings.max_nodes = static_cast<std::uint32_t>(wall.vertex_count);
+    settings.stiffness_n_per_m = state.wall_stiffness_n_per_m;
+    settings.damping_n_s_per_m = state.wall_damping_n_s_per_m;
+    settings.surface_offset_m = 0.0F;  // the planes carry the wall's half-thickness in their reach
+    settings.max_force_n = state.max_contact_force_n;
+    settings.side = model::ContactSide::inner;
+    auto contact = model::ParticleSurfaceContact::create(settings, arena);
+    if (!contact) return std::move(contact).error();
+    state.walls[m].emplace(std::move(contact).value());
+    plane_capacity += settings.max_contacts;
+  }
+  for (const std::size_t instrument : entry.touched_by) {
+    model::ForcepsContactSettings settings;
+    settings.shaft_radius_m = kShaftRadiusM;
+    settings.jaw_radius_m = kJawRadiusM;
+    settings.stiffness_n_per_m = static_cast<float>(cfg.tool_stiffness_n_per_m);
+    settings.max_force_n = state.max_contact_force_n;
+    settings.grasp_stiffness_n_per_m = static_cast<float>(cfg.grasp_stiffness_n_per_m);
+    settings.max_grasp_force_n = state.max_contact_force_n;
+    settings.friction_coefficient = static_cast<float>(cfg.grasp_friction);
+    auto contact = model::ForcepsCatheterContact::create(settings);
+    if (!contact) return std::move(contact).error();
+    state.tools[instrument].emplace(std::move(contact).value());
+    plane_capacity += model::ForcepsCatheterContact::kMaxPlanes;
+  }
+  auto planes = arena.allocate_array<model::ContactPlane>(plane_capacity, "catheter contact planes (scene)");
+  if (!planes) return std::move(planes).error();
+  state.planes = planes.value();
+  auto positions = arena.allocate_array<Vec3>(count, "catheter positions in a model frame");
+  if (!positions) return std::move(positions).error();
+  state.model_frame_positions = positions.value();
+  auto velocities = arena.allocate_array<Vec3>(count, "catheter velocities in a model frame");
+  if (!velocities) return std::move(velocities).error();
+  state.model_frame_velocities = velocities.value();
+  if (entry.insertion) {
+    state.has_goal = true;
+    state.goal_entry_m = to_vec3(entry.insertion->entry_m);
+    state.goal_direction = to_vec3(entry.insertion->direction).normalized();
+    state.goal_radius_m = static_cast<float>(entry.insertion->radius_m);
+    state.goal_target_m = static_cast<float>(entry.insertion->target_depth_m);
+  }
+  return {};
+}
+
+void HapticApp::step_catheters() noexcept {
+  for (InstrumentState& instrument : instruments_) {
+    instrument.tool_force_count = 0;
+    instrument.catheter_contact = false;
+    instrument.grasping = false;
+    instrument.squeeze_n = 0.0F;
+  }
+  for (std::size_t c = 0; c < catheter_count_; ++c) step_catheter(c);
+}
+
+void HapticApp::step_catheter(std::size_t index) noexcept {
+  CatheterState& state = catheters_[index];
+  model::Catheter& catheter = *state.catheter;
+  CatheterStats& stats = stats_.catheters[index];
+  const std::span<const Vec3> positions = catheter.positions_m();
+  const std::span<const Vec3> velocities = catheter.velocities_m_per_s();
+  std::size_t plane_count = 0;
+  bool ok = true;
+
+  // Walls: each particle sphere against each modal model's deformed surface (model frame),
+  // turned into planes in the trainer frame. The surface is fresh where it matters: the modal
+  // models rebuilt it this cycle when a particle or a tool was near.
+  for (std::size_t m = 0; m < modal_model_count_; ++m) {
+    state.wall_first_plane[m] = plane_count;
+    state.wall_out[m] = model::ParticleContactOutput{};
+    if (!state.walls[m]) continue;
+    ModalContactState& wall = modal_contacts_[m];
+    if (!wall.surface_ready) continue;  // no particle near: nothing to find
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      state.model_frame_positions[i] = wall.transform.to_model(positions[i]);
+      state.model_frame_velocities[i] = wall.transform.vector_to_model(velocities[i]);
+    }
+    const model::TriangleMeshView view{wall.deformed, wall.triangles};
+    const float detection_radius = catheter.radius_m() + kWallDetectionMarginM;
+    const core::Status found = state.walls[m]->compute(
+        state.model_frame_positions.first(positions.size()), state.model_frame_velocities.first(positions.size()),
+        detection_radius, view, {}, *wall.grid, state.wall_out[m]);
+    if (!found.is_ok()) ok = false;
+    stats.dropped_contacts += state.wall_out[m].dropped_count;
+    const float reach = catheter.radius_m() + wall_half_thickness(wall);
+    for (const model::ParticleContactRecord& record : state.wall_out[m].contacts) {
+      if (plane_count >= state.planes.size()) {
+        ++stats.dropped_contacts;
+        continue;
+      }
+      model::ContactPlane& plane = state.planes[plane_count++];
+      plane.particle_a = plane.particle_b = record.particle;
+      plane.weight_b = 0.0F;
+      plane.point_m = wall.transform.to_world(record.point_m);
+      plane.normal = wall.transform.vector_to_world(record.normal);
+      plane.surface_velocity_m_per_s = Vec3::Zero();
+      plane.reach_m = reach;
+      plane.stiffness_n_per_m = state.wall_stiffness_n_per_m;
+      plane.damping_n_s_per_m = state.wall_damping_n_s_per_m;
+      plane.max_force_n = state.max_contact_force_n;
+    }
+  }
+  const std::size_t wall_plane_end = plane_count;
+
+  // Tools: shaft and jaws of every instrument touching this catheter; grasping.
+  for (std::size_t i = 0; i < instruments_.size(); ++i) {
+    state.tool_first_plane[i] = plane_count;
+    state.tool_plane_count[i] = 0;
+    if (!state.tools[i]) continue;
+    const InstrumentState& instrument = instruments_[i];
+    std::size_t added = 0;
+    const core::Status prepared = state.tools[i]->prepare(
+        forceps_shape(instrument), catheter, state.planes.subspan(plane_count), added);
+    if (!prepared.is_ok()) ok = false;
+    state.tool_plane_count[i] = added;
+    plane_count += added;
+  }
+
+  if (!catheter.set_contact_planes(state.planes.first(plane_count)).is_ok()) ok = false;
+  catheter.clear_forces();
+  if (state.has_gravity) {
+    for (std::uint32_t p = 0; p < catheter.particle_count(); ++p) {
+      ok = catheter.add_force(p, state.gravity_force_n).is_ok() && ok;
+    }
+  }
+  ok = catheter.step(catheter_period_s_).is_ok() && ok;
+  const std::span<const Vec3> plane_forces = catheter.contact_plane_forces_n();
+
+  // The walls' reactions: minus each plane's mean force, split over its triangle's vertices
+  // (model frame), applied when the model steps next cycle.
+  for (std::size_t m = 0; m < modal_model_count_; ++m) {
+    if (!state.walls[m]) continue;
+    ModalContactState& wall = modal_contacts_[m];
+    const std::span<const model::ParticleContactRecord> records = state.wall_out[m].contacts;
+    Vec3 total = Vec3::Zero();
+    std::uint32_t touching = 0;
+    for (std::size_t k = 0; k < records.size(); ++k) {
+      const std::size_t plane = state.wall_first_plane[m] + k;
+      if (plane >= wall_plane_end || plane >= plane_forces.size()) break;
+      const Vec3 on_wall = -wall.transform.vector_to_model(plane_forces[plane]);
+      if (on_wall.isZero(0.0F)) continue;
+      ++touching;
+      total += on_wall;
+      for (std::size_t corner = 0; corner < 3; ++corner) {
+        const float weight = records[k].barycentric[static_cast<Eigen::Index>(corner)];
+        if (weight == 0.0F) continue;
+        if (!add_catheter_load(wall, records[k].vertices[corner], weight * on_wall)) ++stats.dropped_contacts;
+      }
+    }
+    if (touching > 0) ++stats.wall_contact_cycles;
+    ModalModelStats& wall_stats = stats_.modal_models[m];
+    if (touching > 0) ++wall_stats.catheter_contact_cycles;
+    wall_stats.peak_catheter_contacts = std::max(wall_stats.peak_catheter_contacts, touching);
+    wall_stats.peak_catheter_force_n = std::max(wall_stats.peak_catheter_force_n, total.norm());
+  }
+
+  // The tools' forces.
+  for (std::size_t i = 0; i < instruments_.size(); ++i) {
+    if (!state.tools[i]) continue;
+    InstrumentState& instrument = instruments_[i];
+    model::ForcepsCatheterContact& tool = *state.tools[i];
+    const std::size_t first = state.tool_first_plane[i];
+    const std::size_t count = state.tool_plane_count[i];
+    const std::span<const Vec3> mine = first + count <= plane_forces.size()
+                                           ? plane_forces.subspan(first, count)
+                                           : std::span<const Vec3>{};
+    if (!tool.collect(forceps_shape(instrument), catheter, mine).is_ok()) ok = false;
+    for (const model::ToolForce& force : tool.tool_forces()) {
+      if (instrument.tool_force_count >= instrument.tool_forces.size()) {
+        ok = false;
+        break;
+      }
+      instrument.tool_forces[instrument.tool_force_count++] = force;
+      instrument.catheter_contact = true;
+    }
+    InstrumentStats& tool_stats = stats_.instruments[i];
+    if (tool.grasping()) {
+      instrument.grasping = true;
+      instrument.squeeze_n = std::max(instrument.squeeze_n, tool.squeeze_force_n());
+      ++tool_stats.grasping_cycles;
+    }
+    tool_stats.grasps = tool.grasp_count();
+    tool_stats.slips = tool.slip_count();
+    tool_stats.peak_squeeze_n = std::max(tool_stats.peak_squeeze_n, tool.squeeze_force_n());
+    if (!tool.tool_forces().empty()) ++tool_stats.catheter_contact_cycles;
+  }
+
+  if (state.has_goal) {
+    float depth = 0.0F;
+    for (const Vec3& p : catheter.positions_m()) {
+      const Vec3 offset = p - state.goal_entry_m;
+      const float along = offset.dot(state.goal_direction);
+      const float radial = (offset - along * state.goal_direction).norm();
+      if (along > depth && radial <= state.goal_radius_m) depth = along;
+    }
+    stats.insertion_depth_m = depth;
+    stats.peak_insertion_depth_m = std::max(stats.peak_insertion_depth_m, depth);
+    if (!stats.target_reached && depth >= state.goal_target_m) {
+      stats.target_reached = true;
+      stats.first_target_cycle = stats_.cycles;
+    }
+  }
+  if (!ok) ++stats_.model_step_errors;
+}
+
+std::vector<std::string> HapticApp::modal_model_names() const { return modal_names_; }
+
+std::vector<std::string> HapticApp::catheter_names() const {
+  std::vector<std::string> names;
+  for (std::size_t c = 0; c < catheter_count_; ++c) names.push_back(catheters_[c].name);
+  return names;
 }
 
 std::vector<std::array<float, 3>> HapticApp::catheter_positions_m(const std::string& name) const {

@@ -48,6 +48,15 @@ std::string latency_line(const char* label, const core::LatencyHistogram& h) {
 
 }  // namespace
 
+// The cycle's phases (HapticApp's CyclePhase), each with its percentiles: where the step time goes.
+nlohmann::json step_split(const AppStats& app) {
+  nlohmann::json split = nlohmann::json::object();
+  for (std::size_t phase = 0; phase < kCyclePhaseCount; ++phase) {
+    split[kCyclePhaseNames[phase]] = percentiles(app.phase_ns[phase]);
+  }
+  return split;
+}
+
 nlohmann::json report_json(const RunResult& r) {
   nlohmann::json instruments = nlohmann::json::array();
   for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {
@@ -65,8 +74,15 @@ nlohmann::json report_json(const RunResult& r) {
                                {"insertion_n", s.peak_joint_effort[2]},
                                {"roll_nm", s.peak_joint_effort[3]},
                                {"grip_nm", s.peak_joint_effort[4]}}},
+        {"catheter", {{"contact_cycles", s.catheter_contact_cycles},
+                      {"grasps", s.grasps},
+                      {"slips", s.slips},
+                      {"grasping_cycles", s.grasping_cycles},
+                      {"peak_squeeze_n", s.peak_squeeze_n}}},
     });
   }
+  std::size_t modal_index = 0;
+  std::size_t catheter_index = 0;
   nlohmann::json models = nlohmann::json::array();
   for (const LoadedModelInfo& m : r.models) {
     // Every kind: what it is, where it came from, what it costs, where the scene put it.
@@ -82,6 +98,16 @@ nlohmann::json report_json(const RunResult& r) {
                     {"substeps_per_period", m.substeps_per_period},
                     {"max_substeps", m.max_substeps},
                     {"hold_start", m.hold_start}});
+      const CatheterStats& c = r.app.catheters[catheter_index++];
+      entry["wall_contact_cycles"] = c.wall_contact_cycles;
+      entry["dropped_contacts"] = c.dropped_contacts;
+      if (m.has_insertion_goal) {
+        entry["insertion"] = {{"depth_m", c.insertion_depth_m},
+                              {"peak_depth_m", c.peak_insertion_depth_m},
+                              {"target_depth_m", m.insertion_target_depth_m},
+                              {"target_reached", c.target_reached},
+                              {"first_target_cycle", c.first_target_cycle}};
+      }
       if (!m.final_positions_m.empty()) {
         entry["final_root_position_m"] = m.final_positions_m.front();
         entry["final_tip_position_m"] = m.final_positions_m.back();
@@ -101,6 +127,15 @@ nlohmann::json report_json(const RunResult& r) {
         entry.update({{"mode_count", m.mode_count},
                       {"static_correction", m.static_correction},
                       {"prepared_time_step_s", m.prepared_time_step_s}});
+        const ModalModelStats& d = r.app.modal_models[modal_index++];
+        entry["load"] = {
+            {"peak_force_n", d.peak_force_n},
+            {"mean_force_n", d.loaded_cycles > 0 ? d.force_sum_n / static_cast<double>(d.loaded_cycles) : 0.0},
+            {"loaded_cycles", d.loaded_cycles},
+            {"tool_contact_cycles", d.tool_contact_cycles},
+            {"catheter_contact_cycles", d.catheter_contact_cycles},
+            {"peak_catheter_contacts", d.peak_catheter_contacts},
+            {"peak_catheter_force_n", d.peak_catheter_force_n}};
       }
     }
     models.push_back(std::move(entry));
@@ -124,6 +159,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"cycle_errors", r.loop.cycle_errors},
       {"wake_latency_ns", percentiles(r.loop.wake_latency)},
       {"step_time_ns", percentiles(r.loop.step_time)},
+      {"step_split_ns", step_split(r.app)},
       {"period_measured_ns", percentiles(r.loop.period)},
       {"memory",
        {{"heap_allocations_after_arming", r.heap_allocations_after_arming},
@@ -174,6 +210,13 @@ std::string report_summary(const RunResult& r) {
       << (r.stopped_by_signal ? " (stopped by signal)" : "") << "\n";
   out << "  " << latency_line("wake-up latency:", r.loop.wake_latency) << "\n";
   out << "  " << latency_line("step time:      ", r.loop.step_time) << "\n";
+  out << "  step split p50/p99/p99.9 us:";
+  for (std::size_t phase = 0; phase < kCyclePhaseCount; ++phase) {
+    const core::LatencyHistogram& h = r.app.phase_ns[phase];
+    out << " " << kCyclePhaseNames[phase] << " " << microseconds(h.percentile_ns(0.5)) << "/"
+        << microseconds(h.percentile_ns(0.99)) << "/" << microseconds(h.percentile_ns(0.999));
+  }
+  out << "\n";
   out << "  overruns " << r.loop.overruns << ", longest streak " << r.loop.longest_overrun_streak
       << ", skipped periods " << r.loop.skipped_periods << "\n";
   out << "  heap allocations after arming: " << r.heap_allocations_after_arming
@@ -191,10 +234,24 @@ std::string report_summary(const RunResult& r) {
     const InstrumentStats& s = r.app.instruments[i];
     out << "  instrument '" << r.instrument_names[i] << "': peak force " << s.peak_force_n
         << " N, peak depth " << s.peak_depth_m * 1e3F << " mm, contact cycles "
-        << s.contact_cycles << "\n";
+        << s.contact_cycles;
+    if (s.grasps > 0 || s.catheter_contact_cycles > 0) {
+      out << ", catheter contact cycles " << s.catheter_contact_cycles << ", grasps " << s.grasps
+          << " (slips " << s.slips << "), peak squeeze " << s.peak_squeeze_n << " N";
+    }
+    out << "\n";
   }
+  std::size_t text_modal = 0;
+  std::size_t text_catheter = 0;
   for (const LoadedModelInfo& m : r.models) {
     if (m.kind == config::ModelKind::catheter) {
+      const CatheterStats& c = r.app.catheters[text_catheter++];
+      if (m.has_insertion_goal) {
+        out << "  model '" << m.name << "': insertion depth " << c.insertion_depth_m * 1e3F
+            << " mm (peak " << c.peak_insertion_depth_m * 1e3F << " mm, target "
+            << m.insertion_target_depth_m * 1e3 << " mm: " << (c.target_reached ? "reached" : "NOT reached")
+            << "), wall contact cycles " << c.wall_contact_cycles << "\n";
+      }
       out << "  model '" << m.name << "': catheter, " << m.particle_count
           << " particles, stable step " << microseconds_of_seconds(m.stable_substep_s) << " us, "
           << m.substeps_per_period << " substeps per " << microseconds(r.period_ns)
@@ -209,6 +266,13 @@ std::string report_summary(const RunResult& r) {
           << " contacts, quasi-non-linear " << (m.quasi_nonlinear ? "on" : "off") << ", image "
           << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
       continue;
+    }
+    const ModalModelStats& d = r.app.modal_models[text_modal++];
+    if (d.loaded_cycles > 0) {
+      out << "  model '" << m.name << "': peak force " << d.peak_force_n << " N, mean "
+          << d.force_sum_n / static_cast<double>(d.loaded_cycles) << " N over " << d.loaded_cycles
+          << " loaded cycles (tools " << d.tool_contact_cycles << ", catheter " << d.catheter_contact_cycles
+          << ", at most " << d.peak_catheter_contacts << " catheter contacts)\n";
     }
     out << "  model '" << m.name << "': " << m.node_count << " nodes, " << m.mode_count
         << " modes, static correction " << (m.static_correction ? "on" : "off") << ", image "

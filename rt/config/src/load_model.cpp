@@ -207,6 +207,22 @@ void read_catheter(TableReader& table, CatheterConfig& c) {
   table.finish();
 }
 
+void read_catheter_contact(TableReader& table, CatheterConfig& c) {
+  c.wall_stiffness_n_per_m = table.optional_double("wall_stiffness_n_per_m", c.wall_stiffness_n_per_m,
+                                                   RealRange::left_open(0.0, 1e6), "newtons per metre");
+  c.wall_damping_n_s_per_m = table.optional_double("wall_damping_n_s_per_m", c.wall_damping_n_s_per_m,
+                                                   RealRange::closed(0.0, 1e3), "newton seconds per metre");
+  c.tool_stiffness_n_per_m = table.optional_double("tool_stiffness_n_per_m", c.tool_stiffness_n_per_m,
+                                                   RealRange::left_open(0.0, 1e6), "newtons per metre");
+  c.grasp_stiffness_n_per_m = table.optional_double("grasp_stiffness_n_per_m", c.grasp_stiffness_n_per_m,
+                                                    RealRange::left_open(0.0, 1e6), "newtons per metre");
+  c.grasp_friction = table.optional_double("grasp_friction", c.grasp_friction, RealRange::closed(0.0, 10.0),
+                                           "friction coefficient");
+  c.max_contact_force_n = table.optional_double("max_contact_force_n", c.max_contact_force_n,
+                                                RealRange::left_open(0.0, 100.0), "newtons");
+  table.finish();
+}
+
 void read_pose(TableReader& pose, CatheterConfig& c) {
   c.start_m = pose.required_vec3("start_m", RealRange::closed(-10.0, 10.0), "metres");
   c.direction = pose.required_direction("direction");
@@ -242,6 +258,9 @@ core::Expected<ModelDefinition> load_model_definition(const std::filesystem::pat
     read_catheter(catheter, model.catheter);
     TableReader pose = root.required_table("pose");
     read_pose(pose, model.catheter);
+    if (TableReader contact = root.optional_table("contact"); contact.present()) {
+      read_catheter_contact(contact, model.catheter);
+    }
     root.finish();
     if (!errors.ok()) return errors.error();
     return model;

@@ -320,6 +320,18 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
     } else {
       model.touched_by = resolve_touched_by(entry, *touched_by, config.instruments, errors);
     }
+    std::uint32_t insertion_line = 0;
+    if (TableReader insertion = entry.optional_table("insertion"); insertion.present()) {
+      insertion_line = entry.line("insertion");
+      InsertionGoalConfig goal;
+      goal.entry_m = insertion.required_vec3("entry_m", kPositionComponentRangeM, "metres");
+      goal.direction = insertion.required_direction("direction");
+      goal.radius_m = insertion.required_double("radius_m", RealRange::left_open(0.0, 1.0), "metres");
+      goal.target_depth_m =
+          insertion.required_double("target_depth_m", RealRange::left_open(0.0, 1.0), "metres");
+      insertion.finish();
+      model.insertion = goal;
+    }
     entry.finish();
     for (const SceneModelConfig& earlier : config.models) {
       if (errors.ok() && earlier.name == model.name) {
@@ -333,6 +345,12 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
       return config;
     }
     model.definition = std::move(*loaded);
+    if (model.insertion && model.definition.kind != ModelKind::catheter) {
+      device_error = core::make_error(config.source_path.string() + ":" + std::to_string(insertion_line) +
+                                      ": model '" + model.name +
+                                      "': [model.insertion] is for catheters; this model's kind is not catheter");
+      return config;
+    }
     config.models.push_back(std::move(model));
   }
   root.finish();

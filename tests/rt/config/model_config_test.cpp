@@ -404,7 +404,28 @@ TEST_F(ScenePlacement, MistakesNameFileLineKeyAndExpectation) {
                   "model[0].touched_by = [] has 0 elements: expected an array of 1 to 4 strings");
   expect_contains(refused("rotaton_deg = [0, 0, 90]\n", "rotaton_deg"),
                   "unknown key 'model[0].rotaton_deg' (known: name, definition, position_m, "
-                  "rotation_deg, touched_by); did you mean 'rotation_deg'?");
+                  "rotation_deg, touched_by, insertion); did you mean 'rotation_deg'?");
+  // [model.insertion] belongs to catheters: under the duct it is refused, naming its line.
+  expect_contains(refused("[model.insertion]\nentry_m = [0, 0, 0]\ndirection = [1, 0, 0]\n"
+                          "radius_m = 0.004\ntarget_depth_m = 0.01\n",
+                          "[model.insertion]"),
+                  "model 'duct': [model.insertion] is for catheters");
+}
+
+TEST(CatheterScene, TheCbdSceneReadsItsInsertionGoalAndContactTable) {
+  auto loaded = load_scene(repo_path("config/scenes/cbd.toml"));
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  ASSERT_EQ(loaded->models.size(), 2U);
+  const SceneModelConfig& catheter = loaded->models[1];
+  ASSERT_TRUE(catheter.insertion.has_value());
+  EXPECT_EQ(catheter.insertion->entry_m, (Vec3{-0.02, 0.0, -0.1}));
+  EXPECT_NEAR(catheter.insertion->direction[0], 0.9945, 1e-4);  // normalised
+  EXPECT_DOUBLE_EQ(catheter.insertion->target_depth_m, 0.010);
+  EXPECT_EQ(catheter.touched_by, (std::vector<std::size_t>{0}));
+  EXPECT_DOUBLE_EQ(catheter.definition.catheter.grasp_friction, 0.6);
+  EXPECT_DOUBLE_EQ(catheter.definition.catheter.tool_stiffness_n_per_m, 300.0);
+  EXPECT_FALSE(catheter.definition.catheter.hold_start);
+  EXPECT_FALSE(loaded->models[0].insertion.has_value());
 }
 
 }  // namespace

@@ -12,15 +12,17 @@
 // pressing on the shaft loads pitch and yaw through the lever about the trocar (the paper's
 // coupling moments).
 //
-// Grasping: when both jaws touch the catheter (within reach, on the same or neighbouring
+// Grasping: when the jaws are closing (the grip angle fell since the last cycle) and both touch the catheter (within reach, on the same or neighbouring
 // catheter segments) the segment jaw 0 touches is grasped: its two particles are held in the
 // jaw frame (origin the hinge, axes d̂, n, d̂ × n) where they were, so the catheter follows the
 // jaws. The squeeze on each jaw is k_g·(r_c + r_j − distance from the grasped point to the jaw
 // axis), clipped to [0, max_grasp_force_n]: the jaws stop where they touch and the handle
 // feels the grasp force (through the grip joint's Jacobian). The catheter's pull on the held
 // particles goes to the jaws too. The grasp ends when a jaw no longer squeezes (opened) or when
-// the pull along the jaws exceeds friction_coefficient × the total squeeze (the catheter
-// slips out); a slip blocks re-grasping for regrasp_delay_cycles.
+// the pull exceeds friction_coefficient × the total squeeze (the catheter slips out; judged
+// from grasp_settle_cycles after the grasp began); a slip blocks re-grasping for
+// regrasp_delay_cycles, and so does an opening (the jaws pass the touching angle on their way
+// open and must not grasp again on the way).
 //
 // Runtime code: float, noexcept, no heap after create(), fixed capacities (the planes one
 // tool may add per cycle, the tool forces). Trainer frame throughout. One thread owns it.
@@ -29,6 +31,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 
 #include <Eigen/Core>
@@ -61,7 +64,10 @@ struct ForcepsContactSettings {
   float grasp_stiffness_n_per_m = 3000.0F;  // > 0: squeeze per metre of jaw closure past touch
   float max_grasp_force_n = 10.0F;          // > 0, per jaw
   float friction_coefficient = 0.6F;        // ≥ 0: slip when pull > μ × total squeeze
-  std::uint32_t regrasp_delay_cycles = 50;  // after a slip
+  std::uint32_t regrasp_delay_cycles = 50;  // after a slip or an opening
+  // Cycles after a grasp starts before slipping is judged: the jaws have only just touched
+  // (the squeeze is near zero) and the catheter is still moving from being pushed by them.
+  std::uint32_t grasp_settle_cycles = 20;
 };
 
 enum class ToolSegment : std::uint8_t { shaft = 0, jaw0 = 1, jaw1 = 2 };
@@ -134,6 +140,8 @@ class ForcepsCatheterContact {
   std::array<float, 2> squeeze_n_{0.0F, 0.0F};
   std::array<float, 2> squeeze_along_m_{0.0F, 0.0F};  // where on each jaw
   std::uint32_t regrasp_wait_ = 0;
+  std::uint32_t grasp_age_cycles_ = 0;
+  float previous_grip_rad_ = std::numeric_limits<float>::max();  // a grasp needs closing jaws
   std::uint64_t grasp_count_ = 0;
   std::uint64_t slip_count_ = 0;
 };

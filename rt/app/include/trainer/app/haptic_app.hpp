@@ -19,6 +19,7 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/core/clock.hpp"
 #include "trainer/core/expected.hpp"
+#include "trainer/core/histogram.hpp"
 #include "trainer/core/log_ring.hpp"
 #include "trainer/core/triple_buffer.hpp"
 #include "trainer/hal/device.hpp"
@@ -28,6 +29,8 @@
 #include "trainer/model/catheter.hpp"
 #include "trainer/model/bucket_grid.hpp"
 #include "trainer/model/displacement_contact.hpp"
+#include "trainer/model/forceps_catheter.hpp"
+#include "trainer/model/particle_contact.hpp"
 #include "trainer/model/image_loader.hpp"
 #include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
@@ -52,6 +55,34 @@ struct InstrumentStats {
   std::uint64_t contact_cycles = 0;
   std::uint64_t contact_onsets = 0;
   std::array<float, 5> peak_joint_effort{};
+  // Against catheters: grasps started, slips (pulled out of the jaws), cycles holding one,
+  // and the largest squeeze on both jaws together.
+  std::uint64_t grasps = 0;
+  std::uint64_t slips = 0;
+  std::uint64_t grasping_cycles = 0;
+  float peak_squeeze_n = 0.0F;
+  std::uint64_t catheter_contact_cycles = 0;  // the shaft or a jaw pushed a catheter
+};
+
+// What a modal model (the duct) took from the tools and catheters over the run.
+struct ModalModelStats {
+  float peak_force_n = 0.0F;       // |total force on the model| in one cycle
+  double force_sum_n = 0.0;        // over cycles with any load, for the mean
+  std::uint64_t loaded_cycles = 0;
+  std::uint64_t tool_contact_cycles = 0;
+  std::uint64_t catheter_contact_cycles = 0;
+  std::uint32_t peak_catheter_contacts = 0;  // particle–wall contacts in one cycle
+  float peak_catheter_force_n = 0.0F;        // |total catheter force on the model|
+};
+
+// Catheter progress against its [model.insertion] goal.
+struct CatheterStats {
+  float insertion_depth_m = 0.0F;       // at the last cycle
+  float peak_insertion_depth_m = 0.0F;
+  std::uint64_t first_target_cycle = 0;  // the first cycle at or past the target depth
+  bool target_reached = false;
+  std::uint64_t wall_contact_cycles = 0;
+  std::uint64_t dropped_contacts = 0;  // beyond a capacity (counted, not applied)
 };
 
 // A model the scene named, as loaded (for the report).
@@ -79,6 +110,8 @@ struct LoadedModelInfo {
   std::uint32_t substeps_per_period = 0;  // substeps one loop period costs
   std::uint32_t max_substeps = 0;       // the budget from the definition
   bool hold_start = false;
+  bool has_insertion_goal = false;
+  double insertion_target_depth_m = 0.0;
   // Placement in the trainer frame as the scene wrote it ([[model]] position_m, rotation_deg).
   std::array<double, 3> position_m{};
   std::array<double, 3> rotation_deg{};
@@ -86,8 +119,23 @@ struct LoadedModelInfo {
   std::vector<std::array<float, 3>> final_positions_m;
 };
 
+// Where one cycle's time goes (ns per cycle, real clock; all zero in simulated time). The
+// phases run in this order and cover run_cycle() from the HAL read to the telemetry publish.
+enum class CyclePhase : std::uint8_t {
+  hal_read = 0,    // encoders, digital inputs, drive status; the safety chain's input checks
+  kinematics,      // joint positions and rates, forward kinematics of every instrument
+  modal_models,    // tool–duct contact (grid query, contact solve), the duct's step, its surface
+  catheters,       // catheter–wall and tool–catheter collision, grasping, the catheter's substeps
+  forces,          // rigid objects, Jᵀ efforts, the safety chain's force limits
+  hal_write,       // actuator commands, digital outputs, fault logging, telemetry
+};
+inline constexpr std::size_t kCyclePhaseCount = 6;
+inline constexpr std::array<const char*, kCyclePhaseCount> kCyclePhaseNames = {
+    "hal_read", "kinematics", "modal_models", "catheters", "forces", "hal_write"};
+
 struct AppStats {
   std::uint64_t cycles = 0;
+  std::array<core::LatencyHistogram, kCyclePhaseCount> phase_ns{};
   std::uint64_t hal_read_errors = 0;
   std::uint64_t hal_write_errors = 0;
   std::uint64_t invalid_encoder_cycles = 0;
@@ -95,6 +143,8 @@ struct AppStats {
   std::uint64_t armed_cycles = 0;
   std::uint64_t model_step_errors = 0;
   std::array<InstrumentStats, kMaxInstruments> instruments{};
+  std::array<ModalModelStats, 4> modal_models{};  // HapticApp::kMaxModels, modal models in scene order
+  std::array<CatheterStats, 4> catheters{};       // catheters in scene order
 };
 
 class HapticApp final : public loop::CycleTask {
@@ -123,6 +173,9 @@ class HapticApp final : public loop::CycleTask {
   const safety::SafetySupervisor& safety() const noexcept { return safety_; }
   std::size_t instrument_count() const noexcept { return instruments_.size(); }
   const std::vector<LoadedModelInfo>& models() const noexcept { return model_info_; }
+  // Scene-order names of the modal models and catheters (the order of AppStats' arrays).
+  std::vector<std::string> modal_model_names() const;
+  std::vector<std::string> catheter_names() const;
   // Placement of the model named `name` (model frame → trainer frame), nullopt if the scene
   // has no such model. model_transform(index) is the same for models()[index].
   std::optional<RigidTransform> model_transform(const std::string& name) const;
@@ -154,6 +207,14 @@ class HapticApp final : public loop::CycleTask {
     bool has_previous_tip = false;
     Eigen::Vector3f model_force_n = Eigen::Vector3f::Zero();
     bool model_contact = false;
+    // Forces from catheters on the shaft and jaws this cycle (ray-based; jaw squeeze and
+    // the pull of a grasped catheter included). Beyond the capacity they are dropped and
+    // counted as model step errors.
+    std::array<model::ToolForce, 2 * model::ForcepsCatheterContact::kMaxToolForces> tool_forces{};
+    std::size_t tool_force_count = 0;
+    bool catheter_contact = false;
+    bool grasping = false;
+    float squeeze_n = 0.0F;
   };
   // Tool contact on one modal model: its deformed surface (rebuilt after every step), the
   // bucket grid over it, and a displacement-driven contact per instrument touching it.
@@ -169,7 +230,13 @@ class HapticApp final : public loop::CycleTask {
     // holds, the surface is not rebuilt (a tool far away costs nothing).
     model::Aabb near_box{};
     bool surface_ready = false;
+    // Reactions of the catheters' wall contacts (model frame), applied at the next step.
+    std::array<model::NodeForce, model::ModalModel::kMaxLoadedNodes> catheter_loads{};
+    std::size_t catheter_load_count = 0;
+    std::size_t vertex_count = 0;
+    float half_thickness_m = 0.0F;  // the shell's: walls lie this far from the mid-surface
   };
+  struct CatheterState;  // below, with the models
   struct ObjectState {
     config::ObjectKind kind = config::ObjectKind::plane;
     model::RigidPlane plane;
@@ -182,13 +249,22 @@ class HapticApp final : public loop::CycleTask {
             std::size_t instrument_count, const config::DigitalConfig& digital) noexcept;
 
   bool read_inputs(const loop::CycleTiming& timing, safety::InputConditions& conditions) noexcept;
+  // `with_grid`: build the bucket grid even if no instrument touches the model (a catheter does).
   static core::Expected<ModalContactState> make_modal_contact(
       const config::SceneModelConfig& entry, const model::ModelImage& image,
-      std::size_t instrument_count, core::Arena& arena);
+      std::size_t instrument_count, bool with_grid, core::Arena& arena);
   void sense_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept;
   // Tool contacts on the modal models, their solve and step, the surfaces for the next cycle.
   void contact_modal_models() noexcept;
   void refresh_surface(ModalContactState& state, const model::ModalModel& modal) noexcept;
+  // Catheters: wall and tool contact planes, the step, the tools' forces, the walls' reactions.
+  void step_catheters() noexcept;
+  static model::ForcepsShape forceps_shape(const InstrumentState& instrument) noexcept;
+  static bool add_catheter_load(ModalContactState& wall, std::uint32_t node, const Eigen::Vector3f& force_n) noexcept;
+  static float wall_half_thickness(const ModalContactState& wall) noexcept;
+  void step_catheter(std::size_t index) noexcept;
+  core::Expected<void> add_catheter_contacts(const config::SceneModelConfig& entry,
+                                             CatheterState& state, core::Arena& arena);
   void render_instrument(std::size_t index, const loop::CycleTiming& timing) noexcept;
   void write_outputs(bool armed) noexcept;
   void publish(const loop::CycleTiming& timing) noexcept;
@@ -210,6 +286,7 @@ class HapticApp final : public loop::CycleTask {
   std::span<InstrumentTelemetry> instrument_out_;
   // Models the scene names (modal ducts, catheters), their data in the arena; stepped every cycle.
   std::array<std::optional<model::ModalModel>, kMaxModels> modal_models_{};
+  std::vector<std::string> modal_names_;  // setup-time only
   std::array<ModalContactState, kMaxModels> modal_contacts_{};  // same index as modal_models_
   std::size_t modal_model_count_ = 0;
   struct CatheterState {
@@ -217,6 +294,25 @@ class HapticApp final : public loop::CycleTask {
     Eigen::Vector3f gravity_force_n = Eigen::Vector3f::Zero();  // m·g on every particle
     bool has_gravity = false;
     std::string name;  // setup-time only
+    // Point-based contact with each modal model (same index as modal_models_), ray-based
+    // contact and grasping with each instrument touching the catheter.
+    std::array<std::optional<model::ParticleSurfaceContact>, kMaxModels> walls{};
+    std::array<model::ParticleContactOutput, kMaxModels> wall_out{};
+    std::array<std::size_t, kMaxModels> wall_first_plane{};
+    std::array<std::optional<model::ForcepsCatheterContact>, kMaxInstruments> tools{};
+    std::array<std::size_t, kMaxInstruments> tool_first_plane{};
+    std::array<std::size_t, kMaxInstruments> tool_plane_count{};
+    std::span<model::ContactPlane> planes;  // the step's planes: walls, then tools
+    std::span<Eigen::Vector3f> model_frame_positions;  // scratch, one per particle
+    std::span<Eigen::Vector3f> model_frame_velocities;
+    float wall_stiffness_n_per_m = 0.0F;
+    float wall_damping_n_s_per_m = 0.0F;
+    float max_contact_force_n = 0.0F;
+    bool has_goal = false;
+    Eigen::Vector3f goal_entry_m = Eigen::Vector3f::Zero();
+    Eigen::Vector3f goal_direction = Eigen::Vector3f::UnitX();
+    float goal_radius_m = 0.0F;
+    float goal_target_m = 0.0F;
   };
   std::array<CatheterState, kMaxModels> catheters_{};
   // Cotin tensor models (static: they change only when a contact is imposed).

@@ -81,6 +81,15 @@ struct CatheterConfig {
   Vec3 direction{};                      // rest tangent from particle 0, unit (normalised on load)
   bool hold_start = true;                // particle 0 and the root tangent held (clamp_start)
   Vec3 gravity_m_per_s2{};               // applied as m·g on every particle each cycle
+  // [contact] (optional table, every key optional): the catheter against duct walls (point-
+  // based, every modal model in the scene) and against the forceps touching it (ray-based,
+  // grasping). Stiffnesses are checked against the chain's stable substep when the scene loads.
+  double wall_stiffness_n_per_m = 500.0;     // particle sphere vs duct wall
+  double wall_damping_n_s_per_m = 0.02;
+  double tool_stiffness_n_per_m = 300.0;     // catheter vs shaft and jaw capsules
+  double grasp_stiffness_n_per_m = 3000.0;   // squeeze per metre of jaw closure past touching
+  double grasp_friction = 0.6;               // slip when the pull exceeds this × the squeeze
+  double max_contact_force_n = 4.0;          // per contact (walls and tools), and per jaw when grasping
 };
 
 enum class TensorStorage : std::uint8_t { surface, all };

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -78,6 +79,17 @@ struct ObjectConfig {  // [[object]]
   std::vector<std::size_t> touched_by;  // indices into SceneConfig::instruments, no repeats
 };
 
+// [model.insertion] of a catheter: where the lumen it is to be inserted into opens and how
+// deep the procedure should take it. The run reports the insertion depth: the largest
+// (p − entry_m)·direction over the catheter's particles p that lie within radius_m of the
+// line through entry_m along direction (0 while none is inside).
+struct InsertionGoalConfig {
+  Vec3 entry_m{};           // centre of the opening, trainer frame, metres
+  Vec3 direction{};         // into the lumen, unit (normalised on load)
+  double radius_m = 0.0;    // (0, 1]: how far from the axis a particle still counts as inside
+  double target_depth_m = 0.0;  // (0, 1]: the depth the procedure is meant to reach
+};
+
 struct SceneModelConfig {  // [[model]]: a model the scene uses, by its definition file
   std::string name;          // unique within the scene
   ModelDefinition definition;
@@ -88,6 +100,7 @@ struct SceneModelConfig {  // [[model]]: a model the scene uses, by its definiti
   Vec3 position_m{};                    // metres, each component [-10, 10], default 0
   Vec3 rotation_deg{};                  // degrees, each component [-360, 360], default 0
   std::vector<std::size_t> touched_by;  // indices into SceneConfig::instruments, no repeats
+  std::optional<InsertionGoalConfig> insertion;  // catheters only
 };
 
 struct SceneConfig {

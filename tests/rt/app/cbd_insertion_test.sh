@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# The reference scene end to end (config/scenes/cbd.toml): modelc builds the duct image, the
+# trainer runs the scripted procedure on the simulated bench in simulated time, and the JSON
+# report must show: the run ended with the script, zero heap allocations after arming, no
+# fault (a non-finite force or effort latches one), no model step error, the left forceps
+# grasped the catheter once without it slipping, the catheter's tip reached the target depth
+# in the duct, the duct was loaded by the right forceps and by the catheter, and every force
+# and effort stayed finite and within the scene's safety limit and the actuators' range.
+# usage: cbd_insertion_test.sh MODELC TRAINER SOURCE_DIR
+set -euo pipefail
+modelc=$1
+trainer=$2
+source_dir=$3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cp -r "$source_dir/config" "$work/config"
+scene="$work/config/scenes/cbd.toml"
+"$modelc" build --scene "$scene" >"$work/build.txt"
+"$trainer" --scene "$scene" --hal sim --time simulated --report "$work/run.json" >"$work/run.txt" 2>&1 \
+  || { echo "trainer failed"; cat "$work/run.txt"; exit 1; }
+python3 - "$work/run.json" <<'PY'
+import json, math, sys
+run = json.load(open(sys.argv[1]))
+assert run["memory"]["heap_allocations_after_arming"] == 0, run["memory"]
+assert run["safety"]["faults_latched_at_end"] == 0, run["safety"]
+assert run["model_step_errors"] == 0, run["model_step_errors"]
+left, right = run["instruments"]
+duct = next(m for m in run["models"] if m["name"] == "duct")
+catheter = next(m for m in run["models"] if m["name"] == "catheter")
+# The procedure: one grasp, held to the end of the carry (no slip), the target depth reached.
+assert left["catheter"]["grasps"] == 1, left["catheter"]
+assert left["catheter"]["slips"] == 0, left["catheter"]
+assert left["catheter"]["peak_squeeze_n"] > 0.5, left["catheter"]
+insertion = catheter["insertion"]
+assert insertion["target_reached"], insertion
+assert insertion["peak_depth_m"] >= insertion["target_depth_m"], insertion
+assert insertion["peak_depth_m"] < 0.0244, insertion  # inside the 24.4 mm duct, not through it
+# The duct felt both the right forceps (steadying press) and the catheter inside it.
+load = duct["load"]
+assert load["tool_contact_cycles"] > 1000, load
+assert load["catheter_contact_cycles"] > 0, load
+assert 0.05 < load["peak_force_n"] < 3.0, load
+# Forces and efforts: finite (else a fault latched) and within the 8 N limit with margin.
+limit = 8.0
+for tool in (left, right):
+    assert math.isfinite(tool["peak_force_n"]) and tool["peak_force_n"] < limit, tool
+    for name, value in tool["peak_joint_effort"].items():
+        assert math.isfinite(value), (name, tool)
+assert right["contact_cycles"] > 1000, right
+print(f"cbd insertion: peak depth {insertion['peak_depth_m'] * 1e3:.1f} mm (target "
+      f"{insertion['target_depth_m'] * 1e3:.0f} mm), squeeze {left['catheter']['peak_squeeze_n']:.2f} N, "
+      f"duct peak {load['peak_force_n']:.3f} N mean {load['mean_force_n']:.3f} N, "
+      f"left peak {left['peak_force_n']:.3f} N, right peak {right['peak_force_n']:.3f} N, no heap, no faults")
+PY
