@@ -94,6 +94,12 @@ void ForcepsCatheterContact::update_squeeze(const ForcepsShape& shape, const Vec
     const SegmentSegmentClosest closest =
         closest_points_segments(shape.hinge_m, shape.jaw_tips_m[jaw], grasped_point_m, grasped_point_m);
     squeeze_along_m_[jaw] = closest.s * (shape.jaw_tips_m[jaw] - shape.hinge_m).norm();
+    // The catheter pushes the jaw away from the grasped point (along ±n if the point is on
+    // the jaw's axis).
+    const Vec3 away = closest.on_first - grasped_point_m;
+    const float length = away.norm();
+    squeeze_direction_[jaw] = length > 1e-7F ? Vec3(away / length)
+                                             : (jaw == 0 ? shape.opening_direction : Vec3(-shape.opening_direction));
     const float overlap_m = jaw_reach_m - closest.distance_m;  // catheter + jaw radius past touching
     squeeze_n_[jaw] = std::clamp(settings_.grasp_stiffness_n_per_m * overlap_m, 0.0F, settings_.max_grasp_force_n);
   }
@@ -204,7 +210,7 @@ core::Status ForcepsCatheterContact::prepare(const ForcepsShape& shape, Catheter
   return status;
 }
 
-core::Status ForcepsCatheterContact::collect(const ForcepsShape& shape, Catheter& catheter,
+core::Status ForcepsCatheterContact::collect(Catheter& catheter,
                                              std::span<const Vec3> plane_forces_n) noexcept {
   force_count_ = 0;
   if (plane_forces_n.size() != plane_count_) {
@@ -228,20 +234,10 @@ core::Status ForcepsCatheterContact::collect(const ForcepsShape& shape, Catheter
     regrasp_wait_ = settings_.regrasp_delay_cycles;
     return core::Status::ok();
   }
-  const std::span<const Vec3> particles = catheter.positions_m();
-  const Vec3 point = (1.0F - grasped_weight_) * particles[grasped_segment_] +
-                     grasped_weight_ * particles[grasped_segment_ + 1];
   for (std::size_t jaw = 0; jaw < 2; ++jaw) {
-    const SegmentSegmentClosest closest = closest_points_segments(shape.hinge_m, shape.jaw_tips_m[jaw], point, point);
-    Vec3 away = closest.on_first - point;  // from the grasped point towards the jaw
-    const float length = away.norm();
-    if (length > 1e-7F) {
-      away /= length;
-    } else {
-      away = jaw == 0 ? shape.opening_direction : Vec3(-shape.opening_direction);
-    }
     const auto segment = jaw == 0 ? ToolSegment::jaw0 : ToolSegment::jaw1;
-    forces_[force_count_++] = ToolForce{segment, squeeze_along_m_[jaw], squeeze_n_[jaw] * away + 0.5F * pull};
+    forces_[force_count_++] =
+        ToolForce{segment, squeeze_along_m_[jaw], squeeze_n_[jaw] * squeeze_direction_[jaw] + 0.5F * pull};
   }
   return core::Status::ok();
 }

@@ -144,9 +144,6 @@ bool HapticApp::add_catheter_load(ModalContactState& wall, std::uint32_t node, c
   return true;
 }
 
-// Half the shell's thickness: the wall surface's distance from the mid-surface mesh.
-float HapticApp::wall_half_thickness(const ModalContactState& wall) noexcept { return wall.half_thickness_m; }
-
 namespace {
 
 // What the report says of a model loaded from an image, whatever its kind.
@@ -354,7 +351,6 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     }
     app->modal_contacts_[app->modal_model_count_] = std::move(contact_state).value();
     app->modal_models_[app->modal_model_count_++].emplace(std::move(*modal));
-    app->modal_names_.push_back(entry.name);
     LoadedModelInfo info = image_model_info(entry, definition, *image, arena.used_bytes() - arena_before);
     info.mode_count = metadata.mode_count;
     info.static_correction = metadata.static_correction != 0;
@@ -862,7 +858,6 @@ core::Expected<void> HapticApp::add_catheter_contacts(const config::SceneModelCo
   state.wall_damping_n_s_per_m = static_cast<float>(cfg.wall_damping_n_s_per_m);
   state.max_contact_force_n = static_cast<float>(cfg.max_contact_force_n);
 
-  std::size_t plane_capacity = 0;
   for (std::size_t m = 0; m < modal_model_count_; ++m) {
     const ModalContactState& wall = modal_contacts_[m];
     if (!wall.grid) continue;
@@ -878,7 +873,6 @@ core::Expected<void> HapticApp::add_catheter_contacts(const config::SceneModelCo
     auto contact = model::ParticleSurfaceContact::create(settings, arena);
     if (!contact) return std::move(contact).error();
     state.walls[m].emplace(std::move(contact).value());
-    plane_capacity += settings.max_contacts;
   }
   for (const std::size_t instrument : entry.touched_by) {
     model::ForcepsContactSettings settings;
@@ -892,9 +886,10 @@ core::Expected<void> HapticApp::add_catheter_contacts(const config::SceneModelCo
     auto contact = model::ForcepsCatheterContact::create(settings);
     if (!contact) return std::move(contact).error();
     state.tools[instrument].emplace(std::move(contact).value());
-    plane_capacity += model::ForcepsCatheterContact::kMaxPlanes;
   }
-  auto planes = arena.allocate_array<model::ContactPlane>(plane_capacity, "catheter contact planes (scene)");
+  // The catheter was created with room for every wall and tool plane (create()).
+  auto planes = arena.allocate_array<model::ContactPlane>(catheter.max_contact_planes(),
+                                                          "catheter contact planes (scene)");
   if (!planes) return std::move(planes).error();
   state.planes = planes.value();
   auto positions = arena.allocate_array<Vec3>(count, "catheter positions in a model frame");
@@ -952,7 +947,7 @@ void HapticApp::step_catheter(std::size_t index) noexcept {
         detection_radius, view, {}, *wall.grid, state.wall_out[m]);
     if (!found.is_ok()) ok = false;
     stats.dropped_contacts += state.wall_out[m].dropped_count;
-    const float reach = catheter.radius_m() + wall_half_thickness(wall);
+    const float reach = catheter.radius_m() + wall.half_thickness_m;  // to the wall's surface
     for (const model::ParticleContactRecord& record : state.wall_out[m].contacts) {
       if (plane_count >= state.planes.size()) {
         ++stats.dropped_contacts;
@@ -1034,7 +1029,7 @@ void HapticApp::step_catheter(std::size_t index) noexcept {
     const std::span<const Vec3> mine = first + count <= plane_forces.size()
                                            ? plane_forces.subspan(first, count)
                                            : std::span<const Vec3>{};
-    if (!tool.collect(forceps_shape(instrument), catheter, mine).is_ok()) ok = false;
+    if (!tool.collect(catheter, mine).is_ok()) ok = false;
     for (const model::ToolForce& force : tool.tool_forces()) {
       if (instrument.tool_force_count >= instrument.tool_forces.size()) {
         ok = false;
@@ -1071,14 +1066,6 @@ void HapticApp::step_catheter(std::size_t index) noexcept {
     }
   }
   if (!ok) ++stats_.model_step_errors;
-}
-
-std::vector<std::string> HapticApp::modal_model_names() const { return modal_names_; }
-
-std::vector<std::string> HapticApp::catheter_names() const {
-  std::vector<std::string> names;
-  for (std::size_t c = 0; c < catheter_count_; ++c) names.push_back(catheters_[c].name);
-  return names;
 }
 
 std::vector<std::array<float, 3>> HapticApp::catheter_positions_m(const std::string& name) const {

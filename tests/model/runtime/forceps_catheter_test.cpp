@@ -73,7 +73,7 @@ struct Rig {
       ASSERT_TRUE(catheter.add_force(catheter.particle_count() - 1, pull_on_last).is_ok());
     }
     ASSERT_TRUE(catheter.step(kPeriodS).is_ok());
-    ASSERT_TRUE(contact.collect(shape, catheter, catheter.contact_plane_forces_n()).is_ok());
+    ASSERT_TRUE(contact.collect(catheter, catheter.contact_plane_forces_n()).is_ok());
   }
   Vec3 total_tool_force() const {
     Vec3 total = Vec3::Zero();

@@ -230,6 +230,7 @@ class Catheter {
   // max_contact_planes keeps the first ones and returns capacity_exceeded.
   core::Status set_contact_planes(std::span<const ContactPlane> planes) noexcept;
   std::size_t contact_plane_count() const noexcept { return plane_count_; }
+  std::size_t max_contact_planes() const noexcept { return planes_.size(); }  // setup.max_contact_planes
   // Mean force (N) each plane put on the catheter over the last step(), in set order.
   std::span<const Vec3> contact_plane_forces_n() const noexcept {
     return {plane_forces_n_.data(), plane_count_};

@@ -101,8 +101,7 @@ class ForcepsCatheterContact {
   // After the step: the forces on the tool from this tool's planes (their mean forces from
   // the catheter, in the order prepare() wrote them) and from the grasp; a slip releases the
   // held particles here. plane_forces_n must hold plane_count() forces (invalid_argument).
-  core::Status collect(const ForcepsShape& shape, Catheter& catheter,
-                       std::span<const Vec3> plane_forces_n) noexcept;
+  core::Status collect(Catheter& catheter, std::span<const Vec3> plane_forces_n) noexcept;
 
   // Drops the grasp (releases the held particles): e-stop, a fault, the model's removal.
   void release(Catheter& catheter) noexcept;
@@ -122,8 +121,8 @@ class ForcepsCatheterContact {
     float along_m;
   };
   ForcepsCatheterContact() = default;
-  // Squeeze of each jaw on the grasped point (N, ≥ 0) for the current shape, and where on
-  // each jaw it acts; jaw_reach_m = catheter radius + jaw radius.
+  // Squeeze of each jaw on the grasped point (N, ≥ 0) for the current shape, where on each
+  // jaw it acts and its direction; jaw_reach_m = catheter radius + jaw radius.
   void update_squeeze(const ForcepsShape& shape, const Vec3& grasped_point_m, float jaw_reach_m) noexcept;
   void drop_grasp(Catheter& catheter) noexcept;
 
@@ -139,6 +138,7 @@ class ForcepsCatheterContact {
   std::array<Vec3, 2> local_m_{Vec3::Zero(), Vec3::Zero()};  // held particles in the jaw frame
   std::array<float, 2> squeeze_n_{0.0F, 0.0F};
   std::array<float, 2> squeeze_along_m_{0.0F, 0.0F};  // where on each jaw
+  std::array<Vec3, 2> squeeze_direction_{Vec3::Zero(), Vec3::Zero()};  // on each jaw, unit
   std::uint32_t regrasp_wait_ = 0;
   std::uint32_t grasp_age_cycles_ = 0;
   float previous_grip_rad_ = std::numeric_limits<float>::max();  // a grasp needs closing jaws

@@ -64,6 +64,9 @@ struct InstrumentStats {
   std::uint64_t catheter_contact_cycles = 0;  // the shaft or a jaw pushed a catheter
 };
 
+// Models one scene may name (HapticApp::kMaxModels; the per-model statistics are sized by it).
+inline constexpr std::size_t kMaxSceneModels = 4;
+
 // What a modal model (the duct) took from the tools and catheters over the run.
 struct ModalModelStats {
   float peak_force_n = 0.0F;       // |total force on the model| in one cycle
@@ -143,8 +146,8 @@ struct AppStats {
   std::uint64_t armed_cycles = 0;
   std::uint64_t model_step_errors = 0;
   std::array<InstrumentStats, kMaxInstruments> instruments{};
-  std::array<ModalModelStats, 4> modal_models{};  // HapticApp::kMaxModels, modal models in scene order
-  std::array<CatheterStats, 4> catheters{};       // catheters in scene order
+  std::array<ModalModelStats, kMaxSceneModels> modal_models{};  // modal models in scene order
+  std::array<CatheterStats, kMaxSceneModels> catheters{};       // catheters in scene order
 };
 
 class HapticApp final : public loop::CycleTask {
@@ -153,7 +156,7 @@ class HapticApp final : public loop::CycleTask {
   // before the device is declared lost and a fault latched.
   static constexpr std::uint32_t kToleratedErrorStreak = 3;
   static constexpr std::size_t kMaxObjects = 16;
-  static constexpr std::size_t kMaxModels = 4;
+  static constexpr std::size_t kMaxModels = kMaxSceneModels;
 
   // Setup path: checks the HAL offers the channels the scene needs and carves all cycle state
   // from `arena`. Errors name the scene/device item that does not fit.
@@ -173,9 +176,6 @@ class HapticApp final : public loop::CycleTask {
   const safety::SafetySupervisor& safety() const noexcept { return safety_; }
   std::size_t instrument_count() const noexcept { return instruments_.size(); }
   const std::vector<LoadedModelInfo>& models() const noexcept { return model_info_; }
-  // Scene-order names of the modal models and catheters (the order of AppStats' arrays).
-  std::vector<std::string> modal_model_names() const;
-  std::vector<std::string> catheter_names() const;
   // Placement of the model named `name` (model frame → trainer frame), nullopt if the scene
   // has no such model. model_transform(index) is the same for models()[index].
   std::optional<RigidTransform> model_transform(const std::string& name) const;
@@ -261,7 +261,6 @@ class HapticApp final : public loop::CycleTask {
   void step_catheters() noexcept;
   static model::ForcepsShape forceps_shape(const InstrumentState& instrument) noexcept;
   static bool add_catheter_load(ModalContactState& wall, std::uint32_t node, const Eigen::Vector3f& force_n) noexcept;
-  static float wall_half_thickness(const ModalContactState& wall) noexcept;
   void step_catheter(std::size_t index) noexcept;
   core::Expected<void> add_catheter_contacts(const config::SceneModelConfig& entry,
                                              CatheterState& state, core::Arena& arena);
@@ -286,7 +285,6 @@ class HapticApp final : public loop::CycleTask {
   std::span<InstrumentTelemetry> instrument_out_;
   // Models the scene names (modal ducts, catheters), their data in the arena; stepped every cycle.
   std::array<std::optional<model::ModalModel>, kMaxModels> modal_models_{};
-  std::vector<std::string> modal_names_;  // setup-time only
   std::array<ModalContactState, kMaxModels> modal_contacts_{};  // same index as modal_models_
   std::size_t modal_model_count_ = 0;
   struct CatheterState {
