@@ -313,7 +313,15 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
         return core::make_error(where + ": model '" + entry.name + "' (" + image_name +
                                 "): " + tensor.error().message);
       }
-      app->tensor_models_[app->tensor_model_count_++].emplace(std::move(*tensor));
+      const std::size_t tensor_index = app->tensor_model_count_++;
+      app->tensor_models_[tensor_index].emplace(std::move(*tensor));
+      auto contact_state = make_tensor_contact(entry, *image, *app->tensor_models_[tensor_index],
+                                               scene.instruments.size(), arena);
+      if (!contact_state) {
+        return core::make_error(where + ": model '" + entry.name + "' (" +
+                                definition.source_path.string() + "): " + contact_state.error().message);
+      }
+      app->tensor_contacts_[tensor_index] = std::move(contact_state).value();
       const model::ImageMetadataV1& metadata = image->metadata();
       LoadedModelInfo info = image_model_info(entry, definition, *image, arena.used_bytes() - arena_before);
       info.contact_node_count = metadata.surface_node_count;
@@ -472,7 +480,7 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
 
   Vec3 requested = state.model_force_n;
   bool in_contact = state.model_contact;
-  float depth = 0.0F;
+  float depth = state.model_contact ? state.model_indentation_m : 0.0F;
   for (const ObjectState& object : objects_) {
     if ((object.touched_by_mask & (1U << static_cast<unsigned>(index))) == 0) continue;
     const model::PointContact contact = object.kind == config::ObjectKind::plane
@@ -608,6 +616,8 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   end_phase(CyclePhase::kinematics);
   contact_modal_models();  // tool forces from the ducts, their step, next cycle's surfaces
   end_phase(CyclePhase::modal_models);
+  contact_tensor_models();  // tool forces from the tensor models, their surfaces
+  end_phase(CyclePhase::tensor_models);
   step_catheters();        // walls, shafts and jaws on the catheters, grasps, their step
   end_phase(CyclePhase::catheters);
   for (std::size_t i = 0; i < instruments_.size(); ++i) render_instrument(i, timing);
@@ -635,6 +645,40 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
                      : core::Status{core::StatusCode::io_error, "encoder read failed"};
 }
 
+core::Expected<model::BucketGrid> HapticApp::make_surface_grid(
+    std::span<const float> rest_positions, std::span<const std::uint32_t> triangles,
+    model::Aabb& near_box, core::Arena& arena) {
+  const auto vertex = [&](std::uint32_t node) {
+    const std::size_t base = 3 * static_cast<std::size_t>(node);
+    return Vec3(rest_positions[base], rest_positions[base + 1], rest_positions[base + 2]);
+  };
+  const std::size_t vertex_count = rest_positions.size() / 3;
+  const std::size_t triangle_count = triangles.size() / 3;
+  near_box.min_m = Vec3::Constant(std::numeric_limits<float>::max());
+  near_box.max_m = Vec3::Constant(-std::numeric_limits<float>::max());
+  for (std::size_t node = 0; node < vertex_count; ++node) {
+    near_box.min_m = near_box.min_m.cwiseMin(vertex(static_cast<std::uint32_t>(node)));
+    near_box.max_m = near_box.max_m.cwiseMax(vertex(static_cast<std::uint32_t>(node)));
+  }
+  near_box.min_m.array() -= kSurfaceMarginM;
+  near_box.max_m.array() += kSurfaceMarginM;
+  float longest_edge = 0.0F;
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    for (std::size_t e = 0; e < 3; ++e) {
+      const Vec3 a = vertex(triangles[3 * t + e]);
+      const Vec3 b = vertex(triangles[3 * t + (e + 1) % 3]);
+      longest_edge = std::max(longest_edge, (a - b).norm());
+    }
+  }
+  model::BucketGridSettings grid_settings;
+  grid_settings.max_triangles = static_cast<std::uint32_t>(triangle_count);
+  grid_settings.max_vertices = static_cast<std::uint32_t>(vertex_count);
+  grid_settings.cell_size_m = 1.5F * longest_edge;
+  grid_settings.max_entries = static_cast<std::uint32_t>(27 * triangle_count);
+  grid_settings.table_size = std::bit_ceil(2U * grid_settings.max_entries / 8U + 1U);
+  return model::BucketGrid::create(grid_settings, arena);
+}
+
 core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
     const config::SceneModelConfig& entry, const model::ModelImage& image,
     std::size_t instrument_count, bool with_grid, core::Arena& arena) {
@@ -652,36 +696,7 @@ core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
   state.vertex_count = state.rest_positions.size() / 3;
   state.half_thickness_m = static_cast<float>(0.5 * image.metadata().thickness_m);
   if (state.touched_by_mask == 0 && !with_grid) return state;  // nothing touches it: no grid
-
-  const auto vertex = [&](std::uint32_t node) {
-    const std::size_t base = 3 * static_cast<std::size_t>(node);
-    return Vec3(state.rest_positions[base], state.rest_positions[base + 1],
-                state.rest_positions[base + 2]);
-  };
-  float longest_edge = 0.0F;
-  const std::size_t triangle_count = state.triangles.size() / 3;
-  state.near_box.min_m = Vec3::Constant(std::numeric_limits<float>::max());
-  state.near_box.max_m = Vec3::Constant(-std::numeric_limits<float>::max());
-  for (std::size_t node = 0; node < state.rest_positions.size() / 3; ++node) {
-    state.near_box.min_m = state.near_box.min_m.cwiseMin(vertex(static_cast<std::uint32_t>(node)));
-    state.near_box.max_m = state.near_box.max_m.cwiseMax(vertex(static_cast<std::uint32_t>(node)));
-  }
-  state.near_box.min_m.array() -= kSurfaceMarginM;
-  state.near_box.max_m.array() += kSurfaceMarginM;
-  for (std::size_t t = 0; t < triangle_count; ++t) {
-    for (std::size_t e = 0; e < 3; ++e) {
-      const Vec3 a = vertex(state.triangles[3 * t + e]);
-      const Vec3 b = vertex(state.triangles[3 * t + (e + 1) % 3]);
-      longest_edge = std::max(longest_edge, (a - b).norm());
-    }
-  }
-  model::BucketGridSettings grid_settings;
-  grid_settings.max_triangles = static_cast<std::uint32_t>(triangle_count);
-  grid_settings.max_vertices = static_cast<std::uint32_t>(state.rest_positions.size() / 3);
-  grid_settings.cell_size_m = 1.5F * longest_edge;
-  grid_settings.max_entries = static_cast<std::uint32_t>(27 * triangle_count);
-  grid_settings.table_size = std::bit_ceil(2U * grid_settings.max_entries / 8U + 1U);
-  auto grid = model::BucketGrid::create(grid_settings, arena);
+  auto grid = make_surface_grid(state.rest_positions, state.triangles, state.near_box, arena);
   if (!grid) return std::move(grid).error();
   state.grid.emplace(std::move(grid).value());
   model::DisplacementContactSettings contact_settings;
@@ -705,10 +720,205 @@ void HapticApp::refresh_surface(ModalContactState& state,
   state.surface_ready = state.grid->rebuild(state.deformed, state.triangles).is_ok();
 }
 
+core::Expected<HapticApp::TensorContactState> HapticApp::make_tensor_contact(
+    const config::SceneModelConfig& entry, const model::ModelImage& image,
+    const model::TensorModel& tensor, std::size_t instrument_count, core::Arena& arena) {
+  TensorContactState state;
+  state.transform = RigidTransform::from_placement(entry.position_m, entry.rotation_deg);
+  for (const std::size_t instrument : entry.touched_by) {
+    state.touched_by_mask |= 1U << static_cast<unsigned>(instrument);
+  }
+  state.rest_positions = image.floats(model::SectionId::rest_positions);
+  state.triangles = image.u32s(model::SectionId::triangles);
+  state.response_nodes = tensor.response_nodes();
+  auto deformed = arena.allocate_array<float>(state.rest_positions.size(), "deformed tensor surface");
+  if (!deformed) return std::move(deformed).error();
+  state.deformed = deformed.value();
+  std::copy(state.rest_positions.begin(), state.rest_positions.end(), state.deformed.begin());
+  if (state.touched_by_mask == 0) return state;  // nothing touches it: no grid, no contacts
+
+  // A tool's contact imposes the touched triangle's free nodes (up to 3): the solver's capacity
+  // must hold every touching tool's at once, or a second tool would be refused mid-run.
+  const auto touching = static_cast<std::uint32_t>(std::popcount(state.touched_by_mask));
+  const std::uint32_t needed = static_cast<std::uint32_t>(model::DisplacementContact::kMaxTargets) * touching;
+  if (tensor.max_contacts() < needed) {
+    return core::make_error("[tensor] max_contacts = " + std::to_string(tensor.max_contacts()) +
+                            " is below " + std::to_string(needed) + ": each of the " +
+                            std::to_string(touching) + " instrument(s) touching the model imposes "
+                            "up to 3 nodes (the touched triangle's)");
+  }
+  // Nodes a tool may not displace: every node that is not a contact node of the image (fixed,
+  // partly fixed, interior). The contact leaves them out of its targets, as fixed nodes on the duct.
+  const std::span<const std::uint32_t> contact_nodes = tensor.contact_nodes();
+  const std::size_t node_count = state.rest_positions.size() / 3;
+  auto held = arena.allocate_array<std::uint32_t>(node_count - contact_nodes.size(),
+                                                  "tensor model's non-contact nodes");
+  if (!held) return std::move(held).error();
+  std::size_t next_contact = 0;
+  std::size_t next_held = 0;
+  for (std::uint32_t node = 0; node < node_count; ++node) {
+    if (next_contact < contact_nodes.size() && contact_nodes[next_contact] == node) {
+      ++next_contact;
+    } else {
+      held.value()[next_held++] = node;
+    }
+  }
+  auto grid = make_surface_grid(state.rest_positions, state.triangles, state.near_box, arena);
+  if (!grid) return std::move(grid).error();
+  state.grid.emplace(std::move(grid).value());
+  model::DisplacementContactSettings contact_settings;
+  contact_settings.tip_radius_m = kForcepsTipRadiusM;
+  for (std::size_t i = 0; i < instrument_count; ++i) {
+    if ((state.touched_by_mask & (1U << static_cast<unsigned>(i))) == 0) continue;
+    auto contact = model::DisplacementContact::create(contact_settings, held.value(), arena);
+    if (!contact) return std::move(contact).error();
+    state.contacts[i].emplace(std::move(contact).value());
+  }
+  return state;
+}
+
+void HapticApp::refresh_tensor_surface(TensorContactState& state, model::TensorModel& tensor) noexcept {
+  state.surface_ready = false;
+  if (!state.grid) return;
+  if (tensor.contact_count() == 0) {
+    if (!state.deformed_is_rest) {
+      std::copy(state.rest_positions.begin(), state.rest_positions.end(), state.deformed.begin());
+    }
+    state.deformed_is_rest = true;
+  } else {
+    tensor.update_field();
+    const std::span<const float> field = tensor.displacements();
+    for (std::size_t j = 0; j < state.response_nodes.size(); ++j) {
+      const std::size_t base = 3 * static_cast<std::size_t>(state.response_nodes[j]);
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        state.deformed[base + axis] = state.rest_positions[base + axis] + field[3 * j + axis];
+      }
+    }
+    state.deformed_is_rest = false;
+  }
+  state.surface_ready = state.grid->rebuild(state.deformed, state.triangles).is_ok();
+}
+
+void HapticApp::contact_tensor_models() noexcept {
+  for (std::size_t t = 0; t < tensor_model_count_; ++t) {
+    model::TensorModel& tensor = *tensor_models_[t];
+    TensorContactState& state = tensor_contacts_[t];
+    TensorModelStats& model_stats = stats_.tensor_models[t];
+    if (!state.grid) continue;  // no instrument touches it
+    bool near = false;
+    for (std::size_t i = 0; i < instruments_.size(); ++i) {
+      if (!state.contacts[i]) continue;
+      const Vec3 tip = state.transform.to_model(instruments_[i].pose.tip_m);
+      const bool inside = (tip.array() >= state.near_box.min_m.array()).all() &&
+                          (tip.array() <= state.near_box.max_m.array()).all();
+      near = near || inside || state.contacts[i]->in_contact();
+    }
+    if (!near) {
+      // Far from every tool: at rest, nothing to solve; the surface is rebuilt once on release.
+      if (tensor.contact_count() > 0) (void)tensor.solve({});
+      if (!state.deformed_is_rest || !state.surface_ready) refresh_tensor_surface(state, tensor);
+      state.was_in_contact.fill(false);
+      continue;
+    }
+    if (!state.surface_ready) refresh_tensor_surface(state, tensor);
+    if (!state.surface_ready) {
+      ++stats_.model_step_errors;
+      continue;
+    }
+    const model::TriangleMeshView view{state.deformed, state.triangles};
+    std::array<model::TensorContact, model::TensorModel::kMaxContactsLimit> targets{};
+    std::array<std::size_t, model::TensorModel::kMaxContactsLimit> owner{};
+    std::size_t target_count = 0;
+    float indentation = 0.0F;
+    for (std::size_t i = 0; i < instruments_.size(); ++i) {
+      if (!state.contacts[i]) continue;
+      InstrumentState& instrument = instruments_[i];
+      model::DisplacementContact& contact = *state.contacts[i];
+      const Vec3 tip = state.transform.to_model(instrument.pose.tip_m);
+      const Vec3 previous =
+          instrument.has_previous_tip ? state.transform.to_model(instrument.previous_tip_m) : tip;
+      if (!contact.update(view, *state.grid, previous, tip).is_ok()) ++stats_.model_step_errors;
+      std::array<model::ImposedDisplacement, model::DisplacementContact::kMaxTargets> mine{};
+      const std::size_t count = contact.targets(view, state.rest_positions, tip, mine);
+      // Two tools on one triangle's nodes cannot both impose them: the later one lets go, as
+      // does one beyond the solver's capacity (setup sizes it for every touching tool).
+      bool shared = false;
+      for (std::size_t k = 0; k < count; ++k) {
+        for (std::size_t q = 0; q < target_count; ++q) shared = shared || targets[q].node == mine[k].node;
+      }
+      if (shared || target_count + count > tensor.max_contacts()) {
+        contact.release();
+        continue;
+      }
+      for (std::size_t k = 0; k < count; ++k) {
+        targets[target_count] = model::TensorContact{mine[k].node, mine[k].displacement_m};
+        owner[target_count++] = i;
+        indentation = std::max(indentation, mine[k].displacement_m.norm());
+        instrument.model_indentation_m = std::max(instrument.model_indentation_m, mine[k].displacement_m.norm());
+      }
+    }
+    // Solve; a contact that would pull the tissue is released and the rest re-solved.
+    for (int attempt = 0; attempt < 2 && target_count > 0; ++attempt) {
+      if (!tensor.solve(std::span(targets.data(), target_count)).is_ok()) {
+        ++model_stats.refused_solves;
+        ++stats_.model_step_errors;
+        for (auto& contact : state.contacts) {
+          if (contact) contact->release();
+        }
+        target_count = 0;
+        break;
+      }
+      std::array<Vec3, kMaxInstruments> on_tissue{};
+      for (Vec3& force : on_tissue) force.setZero();
+      for (std::size_t k = 0; k < target_count; ++k) on_tissue[owner[k]] += tensor.contact_force(k);
+      bool released = false;
+      for (std::size_t i = 0; i < instruments_.size(); ++i) {
+        if (!state.contacts[i] || !state.contacts[i]->in_contact()) continue;
+        state.contacts[i]->observe_force(view, on_tissue[i]);
+        released = released || !state.contacts[i]->in_contact();
+      }
+      if (released && attempt == 0) {
+        std::size_t kept = 0;
+        for (std::size_t k = 0; k < target_count; ++k) {
+          if (state.contacts[owner[k]]->in_contact()) {
+            targets[kept] = targets[k];
+            owner[kept++] = owner[k];
+          }
+        }
+        target_count = kept;
+        continue;
+      }
+      Vec3 total = Vec3::Zero();
+      for (std::size_t i = 0; i < instruments_.size(); ++i) {
+        if (!state.contacts[i] || !state.contacts[i]->in_contact()) continue;
+        instruments_[i].model_force_n -= state.transform.vector_to_world(on_tissue[i]);
+        instruments_[i].model_contact = true;
+        total += on_tissue[i];
+      }
+      const float magnitude = total.norm();
+      ++model_stats.loaded_cycles;
+      model_stats.force_sum_n += static_cast<double>(magnitude);
+      model_stats.peak_force_n = std::max(model_stats.peak_force_n, magnitude);
+      model_stats.peak_contact_nodes =
+          std::max(model_stats.peak_contact_nodes, static_cast<std::uint32_t>(target_count));
+      model_stats.peak_indentation_m = std::max(model_stats.peak_indentation_m, indentation);
+      break;
+    }
+    if (target_count == 0 && tensor.contact_count() > 0) (void)tensor.solve({});
+    for (std::size_t i = 0; i < instruments_.size(); ++i) {
+      const bool holding = state.contacts[i] && state.contacts[i]->in_contact();
+      if (holding && !state.was_in_contact[i]) ++model_stats.contact_onsets;
+      state.was_in_contact[i] = holding;
+    }
+    if (tensor.contact_count() > 0 || !state.deformed_is_rest) refresh_tensor_surface(state, tensor);
+  }
+}
+
 void HapticApp::contact_modal_models() noexcept {
   for (InstrumentState& instrument : instruments_) {
     instrument.model_force_n.setZero();
     instrument.model_contact = false;
+    instrument.model_indentation_m = 0.0F;
   }
   for (std::size_t m = 0; m < modal_model_count_; ++m) {
     model::ModalModel& modal = *modal_models_[m];
@@ -774,6 +984,8 @@ void HapticApp::contact_modal_models() noexcept {
         for (std::size_t k = 0; k < count; ++k) {
           targets[target_count] = mine[k];
           owner[target_count++] = i;
+          instrument.model_indentation_m =
+              std::max(instrument.model_indentation_m, mine[k].displacement_m.norm());
         }
       }
       // Solve; a contact that would pull the tissue is released and the rest re-solved.

@@ -82,6 +82,7 @@ nlohmann::json report_json(const RunResult& r) {
     });
   }
   std::size_t modal_index = 0;
+  std::size_t tensor_index = 0;
   std::size_t catheter_index = 0;
   nlohmann::json models = nlohmann::json::array();
   for (const LoadedModelInfo& m : r.models) {
@@ -123,6 +124,15 @@ nlohmann::json report_json(const RunResult& r) {
                       {"stored_node_count", m.stored_node_count},
                       {"max_contacts", m.max_contacts},
                       {"quasi_nonlinear", m.quasi_nonlinear}});
+        const TensorModelStats& t = r.app.tensor_models[tensor_index++];
+        entry["load"] = {
+            {"peak_force_n", t.peak_force_n},
+            {"mean_force_n", t.loaded_cycles > 0 ? t.force_sum_n / static_cast<double>(t.loaded_cycles) : 0.0},
+            {"loaded_cycles", t.loaded_cycles},
+            {"contact_onsets", t.contact_onsets},
+            {"peak_contact_nodes", t.peak_contact_nodes},
+            {"peak_indentation_m", t.peak_indentation_m},
+            {"refused_solves", t.refused_solves}};
       } else {
         entry.update({{"mode_count", m.mode_count},
                       {"static_correction", m.static_correction},
@@ -242,6 +252,7 @@ std::string report_summary(const RunResult& r) {
     out << "\n";
   }
   std::size_t text_modal = 0;
+  std::size_t text_tensor = 0;
   std::size_t text_catheter = 0;
   for (const LoadedModelInfo& m : r.models) {
     if (m.kind == config::ModelKind::catheter) {
@@ -261,6 +272,13 @@ std::string report_summary(const RunResult& r) {
       continue;
     }
     if (m.kind == config::ModelKind::tet_tensor) {
+      const TensorModelStats& t = r.app.tensor_models[text_tensor++];
+      if (t.loaded_cycles > 0) {
+        out << "  model '" << m.name << "': peak force " << t.peak_force_n << " N, mean "
+            << t.force_sum_n / static_cast<double>(t.loaded_cycles) << " N over " << t.loaded_cycles
+            << " loaded cycles, " << t.contact_onsets << " contact(s), peak indentation "
+            << t.peak_indentation_m * 1e3F << " mm on up to " << t.peak_contact_nodes << " nodes\n";
+      }
       out << "  model '" << m.name << "': tensor model, " << m.node_count << " nodes, "
           << m.contact_node_count << " contact nodes, up to " << m.max_contacts
           << " contacts, quasi-non-linear " << (m.quasi_nonlinear ? "on" : "off") << ", image "

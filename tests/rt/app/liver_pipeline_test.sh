@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # End to end for Cotin's tensor model: `modelc build --scene` precomputes the liver-sized block
 # (config/models/liver.toml, 1,989 nodes) and checks the float32 runtime against a direct solve;
-# the trainer loads the image, creates the model with the configured quasi-non-linear maps, and
-# runs with no heap after arming; a decreasing polynomial map and a corrupted image are each
+# the trainer runs the liver scene's scripted probe to its end (press, drag, second press) with
+# the configured quasi-non-linear maps and no heap after arming, and again with the maps removed:
+# the non-linear run's peak force must be the force map applied to the linear run's stiffness at
+# the non-linear run's indentation. A decreasing polynomial map and a corrupted image are each
 # refused before arming, naming the file.
 # usage: liver_pipeline_test.sh MODELC TRAINER SOURCE_DIR
 set -euo pipefail
@@ -19,12 +21,23 @@ image="$work/out/models/liver.img"
 "$modelc" build --scene "$scene" --report "$work/build.json" >"$work/build.txt"
 test -s "$image" || { echo "no image written"; cat "$work/build.txt"; exit 1; }
 
-"$trainer" --scene "$scene" --hal sim --time simulated --cycles 5000 --report "$work/run.json" \
+"$trainer" --scene "$scene" --hal sim --time simulated --report "$work/run.json" \
   >"$work/run.txt" 2>&1 || { echo "trainer failed"; cat "$work/run.txt"; exit 1; }
-python3 - "$work/build.json" "$work/run.json" <<'PY'
-import json, sys
+# The same scene with the linear model: the [nonlinear.*] tables removed from a copy.
+cp -r "$work/config" "$work/linear"
+python3 - "$work/linear/models/liver.toml" <<'PY'
+import sys
+path = sys.argv[1]
+text = open(path).read()
+open(path, "w").write(text[:text.index("[nonlinear.")])  # the image path still leads to $work/out
+PY
+"$trainer" --scene "$work/linear/scenes/liver.toml" --hal sim --time simulated \
+  --report "$work/linear.json" >"$work/linear.txt" 2>&1 || { echo "linear run failed"; cat "$work/linear.txt"; exit 1; }
+python3 - "$work/build.json" "$work/run.json" "$work/linear.json" <<'PY'
+import json, math, sys
 build = json.load(open(sys.argv[1]))
 run = json.load(open(sys.argv[2]))
+linear = json.load(open(sys.argv[3]))
 model = build["models"][0]
 assert model["kind"] == "tet_tensor" and model["node_count"] == 1989, model
 assert model["contact_node_count"] > 500, model
@@ -41,6 +54,37 @@ loaded = run["models"][0]
 assert loaded["kind"] == "tet_tensor" and loaded["quasi_nonlinear"] is True, loaded
 assert loaded["image_bytes"] == model["image_bytes"] and loaded["max_contacts"] == 8, loaded
 assert run["safety"]["faults_latched_at_end"] == 0, run["safety"]
+assert run["model_step_errors"] == 0, run["model_step_errors"]
+
+# The probe: two presses (a drag may let go and touch again), every force finite and below the
+# safety limit (8 N) without being clamped by it, the contact released at the end.
+load = loaded["load"]
+for r in (run, linear):
+    assert r["memory"]["heap_allocations_after_arming"] == 0, r["memory"]
+    assert r["safety"]["faults_latched_at_end"] == 0, r["safety"]
+    p = r["instruments"][0]
+    assert 2 <= p["contact_onsets"] <= 4, p
+    assert 3000 < p["contact_cycles"] < r["cycles"] - 1000, (p, r["cycles"])
+    assert math.isfinite(p["peak_force_n"]) and 1.0 < p["peak_force_n"] < 7.9, p
+    l = r["models"][0]["load"]
+    assert l["peak_contact_nodes"] == 3 and l["refused_solves"] == 0, l
+    # What the tissue took is what the probe felt (action = reaction, no clamp).
+    assert abs(l["peak_force_n"] - p["peak_force_n"]) < 1e-3 * p["peak_force_n"], (l, p)
+    assert abs(l["peak_indentation_m"] - p["peak_depth_m"]) < 1e-9, (l, p)
+assert run["cycles"] == linear["cycles"] >= 15000, (run["cycles"], linear["cycles"])
+# Quasi-non-linear (Cotin §4.3): the colinear force map P(a) = a + 0.5 a^2 + 0.1 a^3 (N) on the
+# linear force. The linear run gives the block's stiffness under the probe; at the non-linear
+# run's peak indentation the linear force is that stiffness times it, and the felt peak force
+# must be P of it (both peaks are at the second, deepest press, nearly normal to the face).
+linear_load = linear["models"][0]["load"]
+stiffness = linear_load["peak_force_n"] / linear_load["peak_indentation_m"]
+a = stiffness * load["peak_indentation_m"]
+expected = a + 0.5 * a * a + 0.1 * a ** 3
+assert abs(load["peak_force_n"] - expected) < 0.05 * expected, (load, expected, stiffness)
+assert load["peak_indentation_m"] < linear_load["peak_indentation_m"], "stiffening must indent less"
+print(f"probe: linear {linear_load['peak_force_n']:.2f} N at {1e3 * linear_load['peak_indentation_m']:.2f} mm "
+      f"({stiffness:.0f} N/m); quasi-non-linear {load['peak_force_n']:.2f} N at "
+      f"{1e3 * load['peak_indentation_m']:.2f} mm, predicted {expected:.2f} N")
 print(f"built {model['node_count']} nodes in {model['timings_s']['total']:.2f} s, image "
       f"{model['image_bytes']} bytes, worst agreement "
       f"{max(c['displacement_error'] for c in checks):.2e}; trainer loaded it, no heap")

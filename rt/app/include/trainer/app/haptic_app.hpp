@@ -78,6 +78,17 @@ struct ModalModelStats {
   float peak_catheter_force_n = 0.0F;        // |total catheter force on the model|
 };
 
+// What a tensor model (Cotin's liver) took from the tools over the run.
+struct TensorModelStats {
+  float peak_force_n = 0.0F;          // |total force on the model| in one cycle
+  double force_sum_n = 0.0;           // over loaded cycles, for the mean
+  std::uint64_t loaded_cycles = 0;    // cycles with at least one tool contact
+  std::uint64_t contact_onsets = 0;   // tool contacts started
+  std::uint32_t peak_contact_nodes = 0;  // nodes imposed in one solve
+  float peak_indentation_m = 0.0F;    // largest imposed node displacement
+  std::uint64_t refused_solves = 0;   // solves the model refused (contacts released)
+};
+
 // Catheter progress against its [model.insertion] goal.
 struct CatheterStats {
   float insertion_depth_m = 0.0F;       // at the last cycle
@@ -128,13 +139,14 @@ enum class CyclePhase : std::uint8_t {
   hal_read = 0,    // encoders, digital inputs, drive status; the safety chain's input checks
   kinematics,      // joint positions and rates, forward kinematics of every instrument
   modal_models,    // tool–duct contact (grid query, contact solve), the duct's step, its surface
+  tensor_models,   // tool–tissue contact on Cotin's tensor models (solve, field, surface)
   catheters,       // catheter–wall and tool–catheter collision, grasping, the catheter's substeps
   forces,          // rigid objects, Jᵀ efforts, the safety chain's force limits
   hal_write,       // actuator commands, digital outputs, fault logging, telemetry
 };
-inline constexpr std::size_t kCyclePhaseCount = 6;
+inline constexpr std::size_t kCyclePhaseCount = 7;
 inline constexpr std::array<const char*, kCyclePhaseCount> kCyclePhaseNames = {
-    "hal_read", "kinematics", "modal_models", "catheters", "forces", "hal_write"};
+    "hal_read", "kinematics", "modal_models", "tensor_models", "catheters", "forces", "hal_write"};
 
 struct AppStats {
   std::uint64_t cycles = 0;
@@ -147,6 +159,7 @@ struct AppStats {
   std::uint64_t model_step_errors = 0;
   std::array<InstrumentStats, kMaxInstruments> instruments{};
   std::array<ModalModelStats, kMaxSceneModels> modal_models{};  // modal models in scene order
+  std::array<TensorModelStats, kMaxSceneModels> tensor_models{};  // tensor models in scene order
   std::array<CatheterStats, kMaxSceneModels> catheters{};       // catheters in scene order
 };
 
@@ -207,6 +220,7 @@ class HapticApp final : public loop::CycleTask {
     bool has_previous_tip = false;
     Eigen::Vector3f model_force_n = Eigen::Vector3f::Zero();
     bool model_contact = false;
+    float model_indentation_m = 0.0F;  // the largest displacement a model contact imposes
     // Forces from catheters on the shaft and jaws this cycle (ray-based; jaw squeeze and
     // the pull of a grasped catheter included). Beyond the capacity they are dropped and
     // counted as model step errors.
@@ -236,6 +250,23 @@ class HapticApp final : public loop::CycleTask {
     std::size_t vertex_count = 0;
     float half_thickness_m = 0.0F;  // the shell's: walls lie this far from the mid-surface
   };
+  // Tool contact on one tensor model: the same displacement-driven contact as on the duct
+  // (the touched triangle's free nodes follow the tip), solved by the tensor model; its
+  // deformed boundary rebuilt from the stored responses after every solve.
+  struct TensorContactState {
+    RigidTransform transform;
+    std::uint32_t touched_by_mask = 0;
+    std::span<const float> rest_positions;      // 3n, model frame
+    std::span<const std::uint32_t> triangles;   // the boundary faces
+    std::span<const std::uint32_t> response_nodes;
+    std::span<float> deformed;                  // 3n, model frame
+    std::optional<model::BucketGrid> grid;
+    std::array<std::optional<model::DisplacementContact>, kMaxInstruments> contacts{};
+    std::array<bool, kMaxInstruments> was_in_contact{};
+    model::Aabb near_box{};
+    bool surface_ready = false;
+    bool deformed_is_rest = true;
+  };
   struct CatheterState;  // below, with the models
   struct ObjectState {
     config::ObjectKind kind = config::ObjectKind::plane;
@@ -249,6 +280,14 @@ class HapticApp final : public loop::CycleTask {
             std::size_t instrument_count, const config::DigitalConfig& digital) noexcept;
 
   bool read_inputs(const loop::CycleTiming& timing, safety::InputConditions& conditions) noexcept;
+  // A bucket grid over a rest surface, cells 1.5 × its longest edge, and the surface's box grown
+  // by kSurfaceMarginM into `near_box`.
+  static core::Expected<model::BucketGrid> make_surface_grid(std::span<const float> rest_positions,
+                                                             std::span<const std::uint32_t> triangles,
+                                                             model::Aabb& near_box, core::Arena& arena);
+  static core::Expected<TensorContactState> make_tensor_contact(
+      const config::SceneModelConfig& entry, const model::ModelImage& image,
+      const model::TensorModel& tensor, std::size_t instrument_count, core::Arena& arena);
   // `with_grid`: build the bucket grid even if no instrument touches the model (a catheter does).
   static core::Expected<ModalContactState> make_modal_contact(
       const config::SceneModelConfig& entry, const model::ModelImage& image,
@@ -257,6 +296,9 @@ class HapticApp final : public loop::CycleTask {
   // Tool contacts on the modal models, their solve and step, the surfaces for the next cycle.
   void contact_modal_models() noexcept;
   void refresh_surface(ModalContactState& state, const model::ModalModel& modal) noexcept;
+  // Tool contacts on the tensor models, their solve, the surfaces for the next cycle.
+  void contact_tensor_models() noexcept;
+  static void refresh_tensor_surface(TensorContactState& state, model::TensorModel& tensor) noexcept;
   // Catheters: wall and tool contact planes, the step, the tools' forces, the walls' reactions.
   void step_catheters() noexcept;
   static model::ForcepsShape forceps_shape(const InstrumentState& instrument) noexcept;
@@ -315,6 +357,7 @@ class HapticApp final : public loop::CycleTask {
   std::array<CatheterState, kMaxModels> catheters_{};
   // Cotin tensor models (static: they change only when a contact is imposed).
   std::array<std::optional<model::TensorModel>, kMaxModels> tensor_models_{};
+  std::array<TensorContactState, kMaxModels> tensor_contacts_{};  // same index as tensor_models_
   std::size_t tensor_model_count_ = 0;
   std::size_t catheter_count_ = 0;
   float catheter_period_s_ = 0.0F;  // the loop period: each cycle advances the chain by it
