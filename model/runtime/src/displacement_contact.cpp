@@ -77,7 +77,9 @@ core::Status DisplacementContact::update(const TriangleMeshView& deformed, Bucke
       grid.query(Aabb::around_segment(previous_tip_m, tip_m, radius), candidates_, count);
   if (!queried.is_ok() && queried.code() != core::StatusCode::capacity_exceeded) return queried;
   const std::size_t triangle_count = deformed.triangles.size() / 3;
-  // The path crossing the surface from outside: the earliest crossing wins.
+  // The path crossing the surface from outside: the earliest crossing wins; equal ones (through
+  // a shared edge or vertex) go to the lowest triangle id, so the answer does not depend on
+  // the order the grid returns candidates in.
   float best_t = std::numeric_limits<float>::infinity();
   float best_depth = 0.0F;
   bool found = false;
@@ -87,14 +89,15 @@ core::Status DisplacementContact::update(const TriangleMeshView& deformed, Bucke
     const Corners tri = corners(deformed, id);
     const SegmentTriangleHit hit =
         intersect_segment_triangle(previous_tip_m, tip_m, tri.a, tri.b, tri.c);
-    if (hit.hit && hit.front_facing && hit.t < best_t) {
+    if (hit.hit && hit.front_facing && (hit.t < best_t || (found && hit.t == best_t && id < triangle_))) {
       best_t = hit.t;
       triangle_ = id;
       barycentric_ = hit.on_triangle.barycentric;
       found = true;
     }
   }
-  // Else the tip sphere touching a triangle from its outward side: the deepest wins.
+  // Else the tip sphere touching a triangle from its outward side: the deepest wins (ties as
+  // above).
   if (!found && radius > 0.0F) {
     for (std::size_t i = 0; i < count; ++i) {
       const std::uint32_t id = candidates_[i];
@@ -103,7 +106,7 @@ core::Status DisplacementContact::update(const TriangleMeshView& deformed, Bucke
       const SphereTriangleContact touch = sphere_triangle_contact(tip_m, radius, tri.a, tri.b, tri.c);
       if (!touch.in_contact) continue;
       if (triangle_normal(tri.a, tri.b, tri.c).dot(tip_m - touch.closest.point) <= 0.0F) continue;
-      if (touch.depth_m > best_depth) {
+      if (touch.depth_m > best_depth || (found && touch.depth_m == best_depth && id < triangle_)) {
         best_depth = touch.depth_m;
         triangle_ = id;
         barycentric_ = touch.closest.barycentric;

@@ -167,6 +167,15 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
       model.inactive_inverse_omega_squared_[j] = 1.0 / omega_squared;
     }
   }
+  auto modes_float = carve<float>(arena, active, "modal model reconstruct scratch");
+  if (!modes_float) return std::move(modes_float).error();
+  model.reconstruct_modes_ = modes_float.value();
+  if (model.static_correction_) {
+    auto residual = carve<float>(arena, 3 * static_cast<std::size_t>(model.surface_count_),
+                                 "modal model reconstruct residual scratch");
+    if (!residual) return std::move(residual).error();
+    model.reconstruct_residual_ = residual.value();
+  }
   auto pending = carve<NodeLoad>(arena, kMaxLoadedNodes, "modal model pending loads");
   if (!pending) return std::move(pending).error();
   model.pending_loads_ = pending.value();
@@ -442,10 +451,48 @@ core::Status ModalModel::reconstruct(std::span<float> out_3n) const noexcept {
   if (out_3n.size() < 3 * static_cast<std::size_t>(node_count_)) {
     return {core::StatusCode::invalid_argument, "modal model: reconstruct output shorter than 3n"};
   }
+  const std::size_t rows = 3 * static_cast<std::size_t>(node_count_);
+  if (static_correction_ && active_modes_ < stored_modes_ && stepped_count_ > 0) {
+    // The inactive modes' static flexibility couples every loaded node with every node through
+    // the stored shapes: rare (a model run below its stored mode count), done per node.
+    for (std::uint32_t node = 0; node < node_count_; ++node) {
+      const Vec3 u = displacement(node);
+      for (int axis = 0; axis < 3; ++axis)
+        out_3n[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(axis)] = u[axis];
+    }
+    return core::Status::ok();
+  }
+  using RowMajorMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const Eigen::Map<const RowMajorMatrix> shapes(mode_shapes_.data(), static_cast<Eigen::Index>(rows),
+                                                static_cast<Eigen::Index>(stored_modes_));
+  for (std::size_t i = 0; i < active_modes_; ++i) reconstruct_modes_[i] = static_cast<float>(x_[i]);
+  const Eigen::Map<const Eigen::VectorXf> modes(reconstruct_modes_.data(),
+                                                static_cast<Eigen::Index>(active_modes_));
+  Eigen::Map<Eigen::VectorXf> out(out_3n.data(), static_cast<Eigen::Index>(rows));
+  out.noalias() = shapes.leftCols(static_cast<Eigen::Index>(active_modes_)) * modes;
+  if (!static_correction_ || stepped_count_ == 0) return core::Status::ok();
+  // Σ_l R_{k,l} F_l for every surface node k: R symmetric, so column block l is the transpose
+  // of row block l — three contiguous rows of length 3s per loaded node.
+  const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+  Eigen::Map<Eigen::VectorXf> residual(reconstruct_residual_.data(), static_cast<Eigen::Index>(stride));
+  residual.setZero();
+  for (std::size_t k = 0; k < stepped_count_; ++k) {
+    const NodeLoad& load = stepped_loads_[k];
+    if (load.surface_index < 0) continue;
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      const float* row = residual_compliance_.data() +
+                         (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride;
+      residual += static_cast<float>(load.force_n[axis]) *
+                  Eigen::Map<const Eigen::VectorXf>(row, static_cast<Eigen::Index>(stride));
+    }
+  }
   for (std::uint32_t node = 0; node < node_count_; ++node) {
-    const Vec3 u = displacement(node);
-    for (int axis = 0; axis < 3; ++axis)
-      out_3n[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(axis)] = u[axis];
+    const std::int32_t surface = surface_index_[node];
+    if (surface < 0) continue;
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      out_3n[3 * static_cast<std::size_t>(node) + axis] +=
+          reconstruct_residual_[3 * static_cast<std::size_t>(surface) + axis];
+    }
   }
   return core::Status::ok();
 }

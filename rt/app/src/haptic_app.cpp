@@ -113,6 +113,15 @@ constexpr float kForcepsTipRadiusM = 0.001F;
 // How far outside a model's rest mesh a tool tip must be for the model's surface to be left
 // stale: more than the model deforms plus one cycle of tool travel.
 constexpr float kSurfaceMarginM = 0.02F;
+// Slack of the surfaces' bucket grids, in cells: a rebuild stores every triangle with its box
+// grown by it, so the grid stays right until a vertex has moved that far (BucketGrid). A
+// quarter cell (~0.5 mm on the duct) costs ~1.5× the entries and rebuilds about every
+// 0.5 mm of motion instead of every cycle (docs/collision.md).
+constexpr float kGridSlackCells = 0.25F;
+// Shaft and jaws against a duct wall: the touched wall point is imposed this far inside the
+// capsule's reach (not at its edge), so the contact persists from one cycle to the next instead
+// of ending the moment the wall sits exactly at the reach and springing back the next.
+constexpr float kSegmentSkinM = 5e-4F;
 
 }  // namespace
 
@@ -133,6 +142,8 @@ model::ForcepsShape HapticApp::forceps_shape(const InstrumentState& instrument) 
 // Merges a catheter's reaction on one node into the model's pending loads; false when the
 // model's load capacity is full (the load is dropped).
 bool HapticApp::add_catheter_load(ModalContactState& wall, std::uint32_t node, const Vec3& force_n) noexcept {
+  // A clamped node cannot move: the clamp takes its share (the model refuses loads there).
+  if (std::binary_search(wall.fixed_nodes.begin(), wall.fixed_nodes.end(), node)) return true;
   for (std::size_t k = 0; k < wall.catheter_load_count; ++k) {
     if (wall.catheter_loads[k].node == node) {
       wall.catheter_loads[k].force_n += force_n;
@@ -529,6 +540,7 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
   }
 
   InstrumentStats& stats = stats_.instruments[index];
+  if (state.wall_segment_contact) ++stats.wall_segment_contact_cycles;
   const float force_norm = force.norm();
   if (in_contact) {
     ++stats.contact_cycles;
@@ -647,7 +659,10 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
 
 core::Expected<model::BucketGrid> HapticApp::make_surface_grid(
     std::span<const float> rest_positions, std::span<const std::uint32_t> triangles,
-    model::Aabb& near_box, core::Arena& arena) {
+    model::Aabb& near_box, std::span<float>& grid_positions, core::Arena& arena) {
+  auto positions = arena.allocate_array<float>(rest_positions.size(), "bucket grid positions");
+  if (!positions) return std::move(positions).error();
+  grid_positions = positions.value();
   const auto vertex = [&](std::uint32_t node) {
     const std::size_t base = 3 * static_cast<std::size_t>(node);
     return Vec3(rest_positions[base], rest_positions[base + 1], rest_positions[base + 2]);
@@ -695,20 +710,52 @@ core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
   std::copy(state.rest_positions.begin(), state.rest_positions.end(), state.deformed.begin());
   state.vertex_count = state.rest_positions.size() / 3;
   state.half_thickness_m = static_cast<float>(0.5 * image.metadata().thickness_m);
+  state.fixed_nodes = image.u32s(model::SectionId::fixed_nodes);
   if (state.touched_by_mask == 0 && !with_grid) return state;  // nothing touches it: no grid
-  auto grid = make_surface_grid(state.rest_positions, state.triangles, state.near_box, arena);
+  auto grid = make_surface_grid(state.rest_positions, state.triangles, state.near_box,
+                                state.grid_positions, arena);
   if (!grid) return std::move(grid).error();
   state.grid.emplace(std::move(grid).value());
   model::DisplacementContactSettings contact_settings;
   contact_settings.tip_radius_m = kForcepsTipRadiusM;
+  // A query can never return more than every triangle: sized so, no contact is ever lost to a
+  // full candidate list (a few kB per contact on these meshes).
+  contact_settings.max_candidates = static_cast<std::uint32_t>(state.triangles.size() / 3);
   for (std::size_t i = 0; i < instrument_count; ++i) {
     if ((state.touched_by_mask & (1U << static_cast<unsigned>(i))) == 0) continue;
     auto contact = model::DisplacementContact::create(
         contact_settings, image.u32s(model::SectionId::fixed_nodes), arena);
     if (!contact) return std::move(contact).error();
     state.contacts[i].emplace(std::move(contact).value());
+    // The shaft and jaws: only the contact geometry is used (the wall's response comes from
+    // the model's imposed solve), so the penalty settings are nominal.
+    model::SegmentContactSettings segment_settings;
+    segment_settings.surface_half_thickness_m = state.half_thickness_m;
+    segment_settings.stiffness_n_per_m = 1.0F;
+    segment_settings.max_force_n = 1.0F;
+    segment_settings.max_candidates = contact_settings.max_candidates;
+    auto segments = model::SegmentSurfaceContact::create(segment_settings, arena);
+    if (!segments) return std::move(segments).error();
+    state.segments[i].emplace(std::move(segments).value());
   }
   return state;
+}
+
+bool HapticApp::fit_grid(model::BucketGrid& grid, bool& grid_built, std::span<float> grid_positions,
+                         std::span<const float> deformed, std::span<const std::uint32_t> triangles) noexcept {
+  const float slack = kGridSlackCells * grid.cell_size_m();
+  float largest_squared = 0.0F;
+  for (std::size_t base = 0; base + 2 < deformed.size(); base += 3) {
+    const float dx = deformed[base] - grid_positions[base];
+    const float dy = deformed[base + 1] - grid_positions[base + 1];
+    const float dz = deformed[base + 2] - grid_positions[base + 2];
+    largest_squared = std::max(largest_squared, dx * dx + dy * dy + dz * dz);
+  }
+  // NaN compares false: a non-finite surface goes to rebuild(), which refuses it.
+  if (grid_built && largest_squared <= slack * slack) return true;
+  grid_built = grid.rebuild(deformed, triangles, slack).is_ok();
+  if (grid_built) std::copy(deformed.begin(), deformed.end(), grid_positions.begin());
+  return grid_built;
 }
 
 void HapticApp::refresh_surface(ModalContactState& state,
@@ -717,7 +764,8 @@ void HapticApp::refresh_surface(ModalContactState& state,
   if (!state.grid) return;
   if (!modal.reconstruct(state.deformed).is_ok()) return;
   for (std::size_t i = 0; i < state.deformed.size(); ++i) state.deformed[i] += state.rest_positions[i];
-  state.surface_ready = state.grid->rebuild(state.deformed, state.triangles).is_ok();
+  state.surface_ready =
+      fit_grid(*state.grid, state.grid_built, state.grid_positions, state.deformed, state.triangles);
 }
 
 core::Expected<HapticApp::TensorContactState> HapticApp::make_tensor_contact(
@@ -763,11 +811,15 @@ core::Expected<HapticApp::TensorContactState> HapticApp::make_tensor_contact(
       held.value()[next_held++] = node;
     }
   }
-  auto grid = make_surface_grid(state.rest_positions, state.triangles, state.near_box, arena);
+  auto grid = make_surface_grid(state.rest_positions, state.triangles, state.near_box,
+                                state.grid_positions, arena);
   if (!grid) return std::move(grid).error();
   state.grid.emplace(std::move(grid).value());
   model::DisplacementContactSettings contact_settings;
   contact_settings.tip_radius_m = kForcepsTipRadiusM;
+  // A query can never return more than every triangle: sized so, no contact is ever lost to a
+  // full candidate list (a few kB per contact on these meshes).
+  contact_settings.max_candidates = static_cast<std::uint32_t>(state.triangles.size() / 3);
   for (std::size_t i = 0; i < instrument_count; ++i) {
     if ((state.touched_by_mask & (1U << static_cast<unsigned>(i))) == 0) continue;
     auto contact = model::DisplacementContact::create(contact_settings, held.value(), arena);
@@ -796,7 +848,8 @@ void HapticApp::refresh_tensor_surface(TensorContactState& state, model::TensorM
     }
     state.deformed_is_rest = false;
   }
-  state.surface_ready = state.grid->rebuild(state.deformed, state.triangles).is_ok();
+  state.surface_ready =
+      fit_grid(*state.grid, state.grid_built, state.grid_positions, state.deformed, state.triangles);
 }
 
 void HapticApp::contact_tensor_models() noexcept {
@@ -914,11 +967,74 @@ void HapticApp::contact_tensor_models() noexcept {
   }
 }
 
+std::size_t HapticApp::gather_segment_targets(
+    ModalContactState& state, const model::TriangleMeshView& view,
+    std::array<model::ImposedDisplacement, model::ModalModel::kMaxContacts>& targets,
+    std::array<std::size_t, model::ModalModel::kMaxContacts>& owner,
+    std::array<std::int32_t, model::ModalModel::kMaxContacts>& segment_of, std::size_t& target_count,
+    std::span<SegmentTarget> segment_targets) noexcept {
+  for (std::size_t k = 0; k < target_count; ++k) segment_of[k] = -1;
+  std::size_t segment_count = 0;
+  for (std::size_t i = 0; i < instruments_.size(); ++i) {
+    if (!state.segments[i]) continue;
+    const kinematics::InstrumentPose& pose = instruments_[i].pose;
+    const Vec3 velocity = state.transform.vector_to_model(instruments_[i].tip_velocity);
+    const Vec3 hinge = state.transform.to_model(pose.hinge_m);
+    const std::array<model::ToolCapsule, 3> capsules{
+        model::ToolCapsule{model::ToolSegment::shaft, state.transform.to_model(pose.shaft_start_m), hinge,
+                           kShaftRadiusM, Vec3::Zero(), velocity},
+        model::ToolCapsule{model::ToolSegment::jaw0, hinge, state.transform.to_model(pose.jaw_tips_m[0]),
+                           kJawRadiusM, velocity, velocity},
+        model::ToolCapsule{model::ToolSegment::jaw1, hinge, state.transform.to_model(pose.jaw_tips_m[1]),
+                           kJawRadiusM, velocity, velocity}};
+    model::SegmentSurfaceContact& contact = *state.segments[i];
+    if (!contact.update(capsules, view, {}, *state.grid).is_ok()) ++stats_.model_step_errors;
+    for (const model::SegmentContact& found : contact.contacts()) {
+      // The wall point goes to where the capsule leaves it just inside its reach; the
+      // triangle's free nodes share the displacement that puts it there (as for a tip).
+      const Vec3 goal = found.mesh_point_m - (found.depth_m - kSegmentSkinM) * found.normal;
+      Vec3 rest = Vec3::Zero();
+      for (std::size_t corner = 0; corner < 3; ++corner) {
+        const std::size_t base = 3 * static_cast<std::size_t>(found.vertices[corner]);
+        rest += found.barycentric[static_cast<Eigen::Index>(corner)] *
+                Vec3(state.rest_positions[base], state.rest_positions[base + 1], state.rest_positions[base + 2]);
+      }
+      const Vec3 imposed = goal - rest;
+      if (!imposed.allFinite()) continue;
+      // Nodes a tip (or an earlier segment) already imposes keep that target; a contact with
+      // no node left, or beyond the model's capacity, is left out this cycle.
+      std::array<std::uint32_t, 3> free{};
+      std::size_t free_count = 0;
+      bool shared = false;
+      for (const std::uint32_t node : found.vertices) {
+        if (std::binary_search(state.fixed_nodes.begin(), state.fixed_nodes.end(), node)) continue;
+        for (std::size_t k = 0; k < target_count; ++k) shared = shared || targets[k].node == node;
+        free[free_count++] = node;
+      }
+      if (shared || free_count == 0 || target_count + free_count > targets.size() ||
+          segment_count >= segment_targets.size()) {
+        continue;
+      }
+      segment_targets[segment_count] = SegmentTarget{i, found.segment, found.along_m, found.depth_m,
+                                                     found.normal, Vec3::Zero(), true};
+      for (std::size_t k = 0; k < free_count; ++k) {
+        targets[target_count] = model::ImposedDisplacement{free[k], imposed};
+        owner[target_count] = i;
+        segment_of[target_count++] = static_cast<std::int32_t>(segment_count);
+      }
+      ++segment_count;
+    }
+  }
+  return segment_count;
+}
+
 void HapticApp::contact_modal_models() noexcept {
   for (InstrumentState& instrument : instruments_) {
     instrument.model_force_n.setZero();
     instrument.model_contact = false;
     instrument.model_indentation_m = 0.0F;
+    instrument.tool_force_count = 0;  // shaft/jaw forces: the ducts' here, the catheters' next
+    instrument.wall_segment_contact = false;
   }
   for (std::size_t m = 0; m < modal_model_count_; ++m) {
     model::ModalModel& modal = *modal_models_[m];
@@ -937,6 +1053,10 @@ void HapticApp::contact_modal_models() noexcept {
     state.catheter_load_count = 0;
     std::array<model::ImposedDisplacement, model::ModalModel::kMaxContacts> targets{};
     std::array<std::size_t, model::ModalModel::kMaxContacts> owner{};
+    // −1 for a tip target, else the index of its shaft/jaw contact in segment_targets.
+    std::array<std::int32_t, model::ModalModel::kMaxContacts> segment_of{};
+    std::array<SegmentTarget, kMaxInstruments * model::SegmentSurfaceContact::kMaxSegments> segment_targets{};
+    std::size_t segment_count = 0;
     std::size_t target_count = 0;
     Vec3 tool_total = Vec3::Zero();
     bool tool_touching = false;
@@ -945,10 +1065,14 @@ void HapticApp::contact_modal_models() noexcept {
     bool near = false;
     for (std::size_t i = 0; i < instruments_.size(); ++i) {
       if (!state.contacts[i]) continue;
-      const Vec3 tip = state.transform.to_model(instruments_[i].pose.tip_m);
-      const bool inside = (tip.array() >= state.near_box.min_m.array()).all() &&
-                          (tip.array() <= state.near_box.max_m.array()).all();
-      near = near || inside || state.contacts[i]->in_contact();
+      const auto inside = [&](const Vec3& world) {
+        const Vec3 local = state.transform.to_model(world);
+        return (local.array() >= state.near_box.min_m.array()).all() &&
+               (local.array() <= state.near_box.max_m.array()).all();
+      };
+      near = near || inside(instruments_[i].pose.tip_m) || inside(instruments_[i].pose.hinge_m) ||
+             state.contacts[i]->in_contact() ||
+             (state.segments[i] && state.segments[i]->contact_count() > 0);
     }
     if (state.grid) {
       for (std::size_t c = 0; c < catheter_count_ && !near; ++c) {
@@ -988,6 +1112,7 @@ void HapticApp::contact_modal_models() noexcept {
               std::max(instrument.model_indentation_m, mine[k].displacement_m.norm());
         }
       }
+      segment_count = gather_segment_targets(state, view, targets, owner, segment_of, target_count, segment_targets);
       // Solve; a contact that would pull the tissue is released and the rest re-solved.
       for (int attempt = 0; attempt < 2 && target_count > 0; ++attempt) {
         std::array<Vec3, model::ModalModel::kMaxContacts> forces{};
@@ -1003,20 +1128,39 @@ void HapticApp::contact_modal_models() noexcept {
         }
         std::array<Vec3, kMaxInstruments> on_tissue{};
         for (Vec3& force : on_tissue) force.setZero();
-        for (std::size_t k = 0; k < target_count; ++k) on_tissue[owner[k]] += forces[k];
+        for (std::size_t s = 0; s < segment_count; ++s) segment_targets[s].on_tissue_n.setZero();
+        for (std::size_t k = 0; k < target_count; ++k) {
+          if (segment_of[k] < 0) {
+            on_tissue[owner[k]] += forces[k];
+          } else {
+            segment_targets[static_cast<std::size_t>(segment_of[k])].on_tissue_n += forces[k];
+          }
+        }
         bool released = false;
         for (std::size_t i = 0; i < instruments_.size(); ++i) {
           if (!state.contacts[i] || !state.contacts[i]->in_contact()) continue;
           state.contacts[i]->observe_force(view, on_tissue[i]);
           released = released || !state.contacts[i]->in_contact();
         }
+        // A shaft or jaw holding the wall where it would have to pull it (the tool moving away
+        // faster than the wall follows) lets go, as a tip contact does.
+        for (std::size_t s = 0; s < segment_count; ++s) {
+          SegmentTarget& target = segment_targets[s];
+          if (target.active && target.on_tissue_n.dot(target.normal) > 0.0F) {
+            target.active = false;
+            released = true;
+          }
+        }
         if (released && attempt == 0) {
           modal.clear_forces();
           std::size_t kept = 0;
           for (std::size_t k = 0; k < target_count; ++k) {
-            if (state.contacts[owner[k]]->in_contact()) {
+            const bool keep = segment_of[k] < 0 ? state.contacts[owner[k]]->in_contact()
+                                                : segment_targets[static_cast<std::size_t>(segment_of[k])].active;
+            if (keep) {
               targets[kept] = targets[k];
-              owner[kept++] = owner[k];
+              owner[kept] = owner[k];
+              segment_of[kept++] = segment_of[k];
             }
           }
           target_count = kept;
@@ -1027,6 +1171,24 @@ void HapticApp::contact_modal_models() noexcept {
           instruments_[i].model_force_n -= state.transform.vector_to_world(on_tissue[i]);
           instruments_[i].model_contact = true;
           tool_total += on_tissue[i];
+          tool_touching = true;
+        }
+        // Shaft and jaws: the opposite of what imposing their wall points took, at the contact
+        // point on the segment (ray-based: the Jacobian there gives the torques).
+        for (std::size_t s = 0; s < segment_count; ++s) {
+          const SegmentTarget& target = segment_targets[s];
+          if (!target.active) continue;
+          InstrumentState& instrument = instruments_[target.instrument];
+          if (instrument.tool_force_count >= instrument.tool_forces.size()) {
+            ++stats_.model_step_errors;
+            continue;
+          }
+          instrument.tool_forces[instrument.tool_force_count++] =
+              model::ToolForce{target.segment, target.along_m, -state.transform.vector_to_world(target.on_tissue_n)};
+          instrument.model_contact = true;
+          instrument.wall_segment_contact = true;
+          instrument.model_indentation_m = std::max(instrument.model_indentation_m, target.depth_m);
+          tool_total += target.on_tissue_n;
           tool_touching = true;
         }
         break;
@@ -1077,6 +1239,7 @@ core::Expected<void> HapticApp::add_catheter_contacts(const config::SceneModelCo
     settings.max_particles = count;
     settings.max_contacts = kWallContactsPerParticle * count;
     settings.max_nodes = static_cast<std::uint32_t>(wall.vertex_count);
+    settings.max_candidates = static_cast<std::uint32_t>(wall.triangles.size() / 3);  // never full
     settings.stiffness_n_per_m = state.wall_stiffness_n_per_m;
     settings.damping_n_s_per_m = state.wall_damping_n_s_per_m;
     settings.surface_offset_m = 0.0F;  // the planes carry the wall's half-thickness in their reach
@@ -1122,7 +1285,6 @@ core::Expected<void> HapticApp::add_catheter_contacts(const config::SceneModelCo
 
 void HapticApp::step_catheters() noexcept {
   for (InstrumentState& instrument : instruments_) {
-    instrument.tool_force_count = 0;
     instrument.catheter_contact = false;
     instrument.grasping = false;
     instrument.squeeze_n = 0.0F;
@@ -1272,6 +1434,9 @@ void HapticApp::step_catheter(std::size_t index) noexcept {
     }
     stats.insertion_depth_m = depth;
     stats.peak_insertion_depth_m = std::max(stats.peak_insertion_depth_m, depth);
+    bool held = false;
+    for (const auto& tool : state.tools) held = held || (tool && tool->grasping());
+    if (held) stats.peak_held_depth_m = std::max(stats.peak_held_depth_m, depth);
     if (!stats.target_reached && depth >= state.goal_target_m) {
       stats.target_reached = true;
       stats.first_target_cycle = stats_.cycles;

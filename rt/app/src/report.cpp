@@ -69,6 +69,7 @@ nlohmann::json report_json(const RunResult& r) {
         {"peak_depth_m", s.peak_depth_m},
         {"contact_cycles", s.contact_cycles},
         {"contact_onsets", s.contact_onsets},
+        {"wall_segment_contact_cycles", s.wall_segment_contact_cycles},
         {"peak_joint_effort", {{"pitch_nm", s.peak_joint_effort[0]},
                                {"yaw_nm", s.peak_joint_effort[1]},
                                {"insertion_n", s.peak_joint_effort[2]},
@@ -105,6 +106,7 @@ nlohmann::json report_json(const RunResult& r) {
       if (m.has_insertion_goal) {
         entry["insertion"] = {{"depth_m", c.insertion_depth_m},
                               {"peak_depth_m", c.peak_insertion_depth_m},
+                              {"peak_held_depth_m", c.peak_held_depth_m},
                               {"target_depth_m", m.insertion_target_depth_m},
                               {"target_reached", c.target_reached},
                               {"first_target_cycle", c.first_target_cycle}};
@@ -259,7 +261,8 @@ std::string report_summary(const RunResult& r) {
       const CatheterStats& c = r.app.catheters[text_catheter++];
       if (m.has_insertion_goal) {
         out << "  model '" << m.name << "': insertion depth " << c.insertion_depth_m * 1e3F
-            << " mm (peak " << c.peak_insertion_depth_m * 1e3F << " mm, target "
+            << " mm (peak " << c.peak_insertion_depth_m * 1e3F << " mm, held in the jaws "
+            << c.peak_held_depth_m * 1e3F << " mm, target "
             << m.insertion_target_depth_m * 1e3 << " mm: " << (c.target_reached ? "reached" : "NOT reached")
             << "), wall contact cycles " << c.wall_contact_cycles << "\n";
       }

@@ -138,6 +138,54 @@ TEST(BucketGrid, QueriesEqualBruteForceOnRandomDeformedMeshes) {
   EXPECT_GT(total_contacts, 1000U);  // the queries did reach the surface
 }
 
+// Rebuilt with a slack s over some positions, the grid still returns every triangle whose
+// AABB overlaps the box after the vertices move up to s (what the trainer relies on to
+// rebuild only when a vertex has moved farther); without the slack it misses some, so the
+// slack is what makes it right.
+TEST(BucketGrid, SlackKeepsTheGridRightWhileVerticesMoveLessThanIt) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> u(0.0F, 1.0F);
+  core::Arena arena = make_arena();
+  Mesh mesh = make_tube(21, 16);
+  BucketGrid grid = make_grid(arena, 640, 336, 0.003F);
+  std::vector<std::uint32_t> out(640);
+  std::size_t missed_without_slack = 0;
+  std::size_t checked = 0;
+  for (int cycle = 0; cycle < 10; ++cycle) {
+    deform(mesh, rng);
+    float largest = 0.0F;
+    for (std::size_t v = 0; v < mesh.rest.size() / 3; ++v) {
+      const Vec3 displacement(mesh.positions[3 * v] - mesh.rest[3 * v],
+                              mesh.positions[3 * v + 1] - mesh.rest[3 * v + 1],
+                              mesh.positions[3 * v + 2] - mesh.rest[3 * v + 2]);
+      largest = std::max(largest, displacement.norm());
+    }
+    for (const float slack : {0.0F, largest}) {
+      ASSERT_TRUE(grid.rebuild(mesh.rest, mesh.triangles, slack).is_ok());  // built at rest
+      for (int query = 0; query < 300; ++query) {
+        const Vec3 centre(0.012F * (u(rng) - 0.5F), 0.012F * (u(rng) - 0.5F), 0.044F * u(rng) - 0.002F);
+        const Aabb box = Aabb::around_point(centre, 0.0015F * u(rng));
+        std::size_t count = 0;
+        ASSERT_TRUE(grid.query(box, out, count).is_ok());
+        const std::set<std::uint32_t> found(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(count));
+        for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+          if (!overlaps(triangle_box(mesh, t), box)) continue;  // the deformed triangle
+          if (slack > 0.0F) {
+            ++checked;
+            ASSERT_TRUE(found.count(t)) << "missed triangle " << t << " with slack " << slack;
+          } else if (found.count(t) == 0) {
+            ++missed_without_slack;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 1000U);
+  EXPECT_GT(missed_without_slack, 0U) << "the deformation should move triangles out of their rest cells";
+  EXPECT_EQ(grid.rebuild(mesh.rest, mesh.triangles, -1e-3F).code(), core::StatusCode::invalid_argument);
+  EXPECT_EQ(grid.rebuild(mesh.rest, mesh.triangles, NAN).code(), core::StatusCode::invalid_argument);
+}
+
 TEST(BucketGrid, CandidatesStayFewWithAGoodCellSize) {
   // Not a timing claim: with the cell ≈ the edge length a small box sees a handful of
   // triangles, not the mesh (the point of a broad phase).

@@ -18,6 +18,12 @@
 // occupies many cells (more entries, slower rebuild), much larger and queries return many
 // triangles the narrow phase then rejects.
 //
+// A grid need not be rebuilt every time the mesh deforms: rebuilt over positions P with a
+// slack s (every triangle stored in the cells of its AABB grown by s), it answers exactly as
+// above for any later positions P' with every vertex within s of P — a triangle's AABB under
+// P' lies inside its AABB under P grown by s. The trainer rebuilds only when some vertex has
+// moved farther than s since the last rebuild (docs/collision.md measures the saving).
+//
 // Units: metres. One thread owns a grid (the haptic thread); query() is not const because it
 // stamps triangles to deduplicate without clearing a set.
 #pragma once
@@ -74,9 +80,11 @@ class BucketGrid {
   // triangles (3m vertex indices). Refuses, leaving the grid empty: more than max_vertices or
   // max_triangles (capacity_exceeded), a length not a multiple of 3 or an index ≥ n
   // (invalid_argument), a non-finite position (numeric_error), and more (triangle, cell)
-  // pairs than max_entries (capacity_exceeded; required_entries() then says how many).
+  // pairs than max_entries (capacity_exceeded; required_entries() then says how many), a
+  // negative or non-finite slack (invalid_argument). `slack_m` grows every triangle's AABB
+  // (see the header comment).
   core::Status rebuild(std::span<const float> positions_m,
-                       std::span<const std::uint32_t> triangles) noexcept;
+                       std::span<const std::uint32_t> triangles, float slack_m = 0.0F) noexcept;
 
   // Triangle ids whose buckets the box touches, each once, into `out_ids`; `out_count` is
   // how many were written. capacity_exceeded when `out_ids` was too short (the first

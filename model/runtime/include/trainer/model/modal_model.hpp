@@ -100,8 +100,12 @@ class ModalModel {
   core::Status solve_imposed(std::span<const ImposedDisplacement> targets,
                              std::span<Vec3> forces_out) noexcept;
 
-  // Full displacement field (graphics rate): out[3i + axis] for node i, including the static
-  // correction when enabled. Refuses a span shorter than 3n.
+  // Full displacement field (graphics rate, and the contact surface every cycle a tool is
+  // near): out[3i + axis] for node i, including the static correction when enabled. Refuses a
+  // span shorter than 3n. Computed as one float matrix–vector product Φ q plus, with static
+  // correction, one row of R per loaded dof (R is symmetric): within float rounding of
+  // displacement(i) (which sums in double), not bit-identical. With static correction over
+  // fewer modes than stored and a load, it falls back to displacement() per node (exact, slow).
   core::Status reconstruct(std::span<float> out_3n) const noexcept;
 
   void reset() noexcept;  // back to rest, forces cleared
@@ -169,6 +173,8 @@ class ModalModel {
   std::span<double> a_;
   std::span<double> modal_force_;  // scratch: Φᵀ F
   std::span<double> predicted_;    // scratch for solve_imposed
+  std::span<float> reconstruct_modes_;     // scratch for reconstruct: x in float
+  std::span<float> reconstruct_residual_;  // scratch for reconstruct: R F over the surface, 3s
 
   std::span<NodeLoad> pending_loads_;  // applied at the next step (kMaxLoadedNodes)
   std::span<NodeLoad> stepped_loads_;  // the forces of the last step (for the static part)

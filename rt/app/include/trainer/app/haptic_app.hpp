@@ -35,6 +35,7 @@
 #include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model/rigid_contact.hpp"
+#include "trainer/model/segment_contact.hpp"
 #include "trainer/model/tensor_image.hpp"
 #include "trainer/model/tensor_model.hpp"
 #include "trainer/safety/safety_supervisor.hpp"
@@ -62,6 +63,7 @@ struct InstrumentStats {
   std::uint64_t grasping_cycles = 0;
   float peak_squeeze_n = 0.0F;
   std::uint64_t catheter_contact_cycles = 0;  // the shaft or a jaw pushed a catheter
+  std::uint64_t wall_segment_contact_cycles = 0;  // the shaft or a jaw held a duct's wall
 };
 
 // Models one scene may name (HapticApp::kMaxModels; the per-model statistics are sized by it).
@@ -94,6 +96,7 @@ struct CatheterStats {
   float insertion_depth_m = 0.0F;       // at the last cycle
   float peak_insertion_depth_m = 0.0F;
   std::uint64_t first_target_cycle = 0;  // the first cycle at or past the target depth
+  float peak_held_depth_m = 0.0F;        // the peak while an instrument grasped the catheter
   bool target_reached = false;
   std::uint64_t wall_contact_cycles = 0;
   std::uint64_t dropped_contacts = 0;  // beyond a capacity (counted, not applied)
@@ -221,10 +224,13 @@ class HapticApp final : public loop::CycleTask {
     Eigen::Vector3f model_force_n = Eigen::Vector3f::Zero();
     bool model_contact = false;
     float model_indentation_m = 0.0F;  // the largest displacement a model contact imposes
-    // Forces from catheters on the shaft and jaws this cycle (ray-based; jaw squeeze and
-    // the pull of a grasped catheter included). Beyond the capacity they are dropped and
-    // counted as model step errors.
-    std::array<model::ToolForce, 2 * model::ForcepsCatheterContact::kMaxToolForces> tool_forces{};
+    bool wall_segment_contact = false;  // the shaft or a jaw holds a duct's wall this cycle
+    // Forces on the shaft and jaws this cycle (ray-based): from the ducts' walls, then from
+    // catheters (jaw squeeze and the pull of a grasped catheter included). Beyond the
+    // capacity they are dropped and counted as model step errors.
+    std::array<model::ToolForce, 2 * model::ForcepsCatheterContact::kMaxToolForces +
+                                     kMaxSceneModels * model::SegmentSurfaceContact::kMaxSegments>
+        tool_forces{};
     std::size_t tool_force_count = 0;
     bool catheter_contact = false;
     bool grasping = false;
@@ -237,13 +243,19 @@ class HapticApp final : public loop::CycleTask {
     std::uint32_t touched_by_mask = 0;
     std::span<const float> rest_positions;
     std::span<const std::uint32_t> triangles;
+    std::span<const std::uint32_t> fixed_nodes;  // strictly increasing (the image's)
     std::span<float> deformed;  // 3n, model frame
     std::optional<model::BucketGrid> grid;
     std::array<std::optional<model::DisplacementContact>, kMaxInstruments> contacts{};
+    // Shaft and jaws of the same instruments against the wall (ray-based collision; the wall
+    // point found is imposed like the tip's).
+    std::array<std::optional<model::SegmentSurfaceContact>, kMaxInstruments> segments{};
     // The rest mesh's box grown by a margin: while no touching tool is inside it and no contact
     // holds, the surface is not rebuilt (a tool far away costs nothing).
     model::Aabb near_box{};
     bool surface_ready = false;
+    std::span<float> grid_positions;  // 3n: the surface the grid was last rebuilt over
+    bool grid_built = false;
     // Reactions of the catheters' wall contacts (model frame), applied at the next step.
     std::array<model::NodeForce, model::ModalModel::kMaxLoadedNodes> catheter_loads{};
     std::size_t catheter_load_count = 0;
@@ -265,7 +277,19 @@ class HapticApp final : public loop::CycleTask {
     std::array<bool, kMaxInstruments> was_in_contact{};
     model::Aabb near_box{};
     bool surface_ready = false;
+    std::span<float> grid_positions;
+    bool grid_built = false;
     bool deformed_is_rest = true;
+  };
+  // One shaft/jaw contact on a modal model this cycle, imposed with the tips' targets.
+  struct SegmentTarget {
+    std::size_t instrument = 0;
+    model::ToolSegment segment = model::ToolSegment::shaft;
+    float along_m = 0.0F;
+    float depth_m = 0.0F;
+    Eigen::Vector3f normal = Eigen::Vector3f::UnitZ();  // model frame, towards the tool
+    Eigen::Vector3f on_tissue_n = Eigen::Vector3f::Zero();  // model frame, from the solve
+    bool active = true;
   };
   struct CatheterState;  // below, with the models
   struct ObjectState {
@@ -280,14 +304,22 @@ class HapticApp final : public loop::CycleTask {
             std::size_t instrument_count, const config::DigitalConfig& digital) noexcept;
 
   bool read_inputs(const loop::CycleTiming& timing, safety::InputConditions& conditions) noexcept;
-  // A bucket grid over a rest surface, cells 1.5 × its longest edge, and the surface's box grown
-  // by kSurfaceMarginM into `near_box`.
+  // A bucket grid for a surface, cells 1.5 × its longest edge at rest, the copy of the positions
+  // it is built over (`grid_positions`, 3n), and the rest surface's box grown by
+  // kSurfaceMarginM into `near_box`.
   static core::Expected<model::BucketGrid> make_surface_grid(std::span<const float> rest_positions,
                                                              std::span<const std::uint32_t> triangles,
-                                                             model::Aabb& near_box, core::Arena& arena);
+                                                             model::Aabb& near_box,
+                                                             std::span<float>& grid_positions,
+                                                             core::Arena& arena);
   static core::Expected<TensorContactState> make_tensor_contact(
       const config::SceneModelConfig& entry, const model::ModelImage& image,
       const model::TensorModel& tensor, std::size_t instrument_count, core::Arena& arena);
+  // Makes `grid` answer for the `deformed` surface: the grid is rebuilt with a slack of
+  // kGridSlackCells cells, and only when some vertex has moved farther than the slack from
+  // `grid_positions` (then copied from `deformed`). False on a refusal.
+  static bool fit_grid(model::BucketGrid& grid, bool& grid_built, std::span<float> grid_positions,
+                       std::span<const float> deformed, std::span<const std::uint32_t> triangles) noexcept;
   // `with_grid`: build the bucket grid even if no instrument touches the model (a catheter does).
   static core::Expected<ModalContactState> make_modal_contact(
       const config::SceneModelConfig& entry, const model::ModelImage& image,
@@ -296,6 +328,14 @@ class HapticApp final : public loop::CycleTask {
   // Tool contacts on the modal models, their solve and step, the surfaces for the next cycle.
   void contact_modal_models() noexcept;
   void refresh_surface(ModalContactState& state, const model::ModalModel& modal) noexcept;
+  // Shaft and jaw contacts of the instruments touching a modal model, as imposed displacements
+  // appended after the tips' (skipping nodes already imposed); returns how many segments.
+  std::size_t gather_segment_targets(
+      ModalContactState& state, const model::TriangleMeshView& view,
+      std::array<model::ImposedDisplacement, model::ModalModel::kMaxContacts>& targets,
+      std::array<std::size_t, model::ModalModel::kMaxContacts>& owner,
+      std::array<std::int32_t, model::ModalModel::kMaxContacts>& segment_of, std::size_t& target_count,
+      std::span<SegmentTarget> segment_targets) noexcept;
   // Tool contacts on the tensor models, their solve, the surfaces for the next cycle.
   void contact_tensor_models() noexcept;
   static void refresh_tensor_surface(TensorContactState& state, model::TensorModel& tensor) noexcept;
