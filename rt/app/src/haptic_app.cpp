@@ -122,6 +122,8 @@ constexpr float kGridSlackCells = 0.25F;
 // capsule's reach (not at its edge), so the contact persists from one cycle to the next instead
 // of ending the moment the wall sits exactly at the reach and springing back the next.
 constexpr float kSegmentSkinM = 5e-4F;
+// The shaft is tested only inside the surface's rest box grown by this much.
+constexpr float kSegmentClipMarginM = 0.01F;
 
 }  // namespace
 
@@ -980,15 +982,45 @@ std::size_t HapticApp::gather_segment_targets(
     const kinematics::InstrumentPose& pose = instruments_[i].pose;
     const Vec3 velocity = state.transform.vector_to_model(instruments_[i].tip_velocity);
     const Vec3 hinge = state.transform.to_model(pose.hinge_m);
-    const std::array<model::ToolCapsule, 3> capsules{
-        model::ToolCapsule{model::ToolSegment::shaft, state.transform.to_model(pose.shaft_start_m), hinge,
-                           kShaftRadiusM, Vec3::Zero(), velocity},
+    const Vec3 shaft_start = state.transform.to_model(pose.shaft_start_m);
+    std::array<model::ToolCapsule, 3> capsules{
         model::ToolCapsule{model::ToolSegment::jaw0, hinge, state.transform.to_model(pose.jaw_tips_m[0]),
                            kJawRadiusM, velocity, velocity},
         model::ToolCapsule{model::ToolSegment::jaw1, hinge, state.transform.to_model(pose.jaw_tips_m[1]),
-                           kJawRadiusM, velocity, velocity}};
+                           kJawRadiusM, velocity, velocity},
+        model::ToolCapsule{}};
+    std::size_t capsule_count = 2;
+    // The shaft is tens of centimetres long: only its part inside the surface's box (grown by
+    // kSegmentClipMarginM) can touch it, and a query box along the whole shaft would cover
+    // most of the grid. along_m is measured from the clipped start: add its offset back.
+    float shaft_offset_m = 0.0F;
+    {
+      const model::Aabb clip{state.near_box.min_m.array() + (kSurfaceMarginM - kSegmentClipMarginM),
+                             state.near_box.max_m.array() - (kSurfaceMarginM - kSegmentClipMarginM)};
+      const Vec3 axis = hinge - shaft_start;
+      float enter = 0.0F;
+      float leave = 1.0F;
+      for (Eigen::Index k = 0; k < 3; ++k) {
+        if (std::fabs(axis[k]) < 1e-12F) {
+          if (shaft_start[k] < clip.min_m[k] || shaft_start[k] > clip.max_m[k]) leave = -1.0F;
+          continue;
+        }
+        const float a = (clip.min_m[k] - shaft_start[k]) / axis[k];
+        const float b = (clip.max_m[k] - shaft_start[k]) / axis[k];
+        enter = std::max(enter, std::min(a, b));
+        leave = std::min(leave, std::max(a, b));
+      }
+      if (enter <= leave) {
+        shaft_offset_m = enter * axis.norm();
+        capsules[capsule_count++] =
+            model::ToolCapsule{model::ToolSegment::shaft, shaft_start + enter * axis, shaft_start + leave * axis,
+                               kShaftRadiusM, enter * velocity, leave * velocity};
+      }
+    }
     model::SegmentSurfaceContact& contact = *state.segments[i];
-    if (!contact.update(capsules, view, {}, *state.grid).is_ok()) ++stats_.model_step_errors;
+    if (!contact.update(std::span(capsules.data(), capsule_count), view, {}, *state.grid).is_ok()) {
+      ++stats_.model_step_errors;
+    }
     for (const model::SegmentContact& found : contact.contacts()) {
       // The wall point goes to where the capsule leaves it just inside its reach; the
       // triangle's free nodes share the displacement that puts it there (as for a tip).
@@ -1015,7 +1047,8 @@ std::size_t HapticApp::gather_segment_targets(
           segment_count >= segment_targets.size()) {
         continue;
       }
-      segment_targets[segment_count] = SegmentTarget{i, found.segment, found.along_m, found.depth_m,
+      const float along_m = found.along_m + (found.segment == model::ToolSegment::shaft ? shaft_offset_m : 0.0F);
+      segment_targets[segment_count] = SegmentTarget{i, found.segment, along_m, found.depth_m,
                                                      found.normal, Vec3::Zero(), true};
       for (std::size_t k = 0; k < free_count; ++k) {
         targets[target_count] = model::ImposedDisplacement{free[k], imposed};
