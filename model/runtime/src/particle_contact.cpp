@@ -1,6 +1,8 @@
 // Particle sphere vs triangle shell penalty contact; see particle_contact.hpp.
 #include "trainer/model/particle_contact.hpp"
 
+#include "mesh_access.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -9,33 +11,16 @@
 namespace trainer::model {
 namespace {
 
+using detail::contains;
+using detail::corner_angle;
+using detail::face_normal;
+using detail::triangle_vertices;
+using detail::vertex_position;
+
 constexpr std::uint32_t kNoSlot = std::numeric_limits<std::uint32_t>::max();
 // Below this centre-to-surface distance (m) the direction (c − p)/|c − p| is not trusted and
 // the pseudo-normal gives the contact normal instead.
 constexpr float kMinDirectionDistanceM = 1e-9F;
-
-Vec3 vertex_position(const TriangleMeshView& mesh, std::uint32_t vertex) noexcept {
-  const std::size_t base = 3 * static_cast<std::size_t>(vertex);
-  return {mesh.positions_m[base], mesh.positions_m[base + 1], mesh.positions_m[base + 2]};
-}
-
-// False when the triangle id or one of its vertices is outside the mesh (a grid built from
-// other arrays): the triangle is then skipped.
-bool triangle_vertices(const TriangleMeshView& mesh, std::uint32_t triangle,
-                       std::uint32_t (&vertices)[3]) noexcept {
-  const std::size_t base = 3 * static_cast<std::size_t>(triangle);
-  if (base + 2 >= mesh.triangles.size()) return false;
-  const std::size_t vertex_count = mesh.positions_m.size() / 3;
-  for (std::size_t corner = 0; corner < 3; ++corner) {
-    vertices[corner] = mesh.triangles[base + corner];
-    if (vertices[corner] >= vertex_count) return false;
-  }
-  return true;
-}
-
-bool contains(const std::uint32_t (&vertices)[3], std::uint32_t vertex) noexcept {
-  return vertices[0] == vertex || vertices[1] == vertex || vertices[2] == vertex;
-}
 
 bool share_vertex(const std::uint32_t (&first)[3], const std::uint32_t (&second)[3]) noexcept {
   return contains(second, first[0]) || contains(second, first[1]) || contains(second, first[2]);
@@ -43,22 +28,6 @@ bool share_vertex(const std::uint32_t (&first)[3], const std::uint32_t (&second)
 
 bool is_finite(const Vec3& v) noexcept {
   return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
-// Interior angle (rad) at the corner whose vertex id is `vertex`.
-float corner_angle(const TriangleMeshView& mesh, const std::uint32_t (&vertices)[3],
-                   std::uint32_t vertex) noexcept {
-  int corner = 0;
-  while (corner < 2 && vertices[corner] != vertex) ++corner;
-  const Vec3 apex = vertex_position(mesh, vertices[corner]);
-  const Vec3 first = vertex_position(mesh, vertices[(corner + 1) % 3]) - apex;
-  const Vec3 second = vertex_position(mesh, vertices[(corner + 2) % 3]) - apex;
-  return std::atan2(first.cross(second).norm(), first.dot(second));
-}
-
-Vec3 face_normal(const TriangleMeshView& mesh, const std::uint32_t (&vertices)[3]) noexcept {
-  return triangle_normal(vertex_position(mesh, vertices[0]), vertex_position(mesh, vertices[1]),
-                         vertex_position(mesh, vertices[2]));
 }
 
 // The two vertex ids of edge `feature` (edge i joins corner i and corner i + 1).

@@ -1,6 +1,8 @@
 // Capsule segments vs thin triangle shell penalty contact; see segment_contact.hpp.
 #include "trainer/model/segment_contact.hpp"
 
+#include "mesh_access.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -9,6 +11,12 @@
 namespace trainer::model {
 namespace {
 
+using detail::contains;
+using detail::corner_angle;
+using detail::face_normal;
+using detail::triangle_vertices;
+using detail::vertex_position;
+
 // Below this distance (m), or a few ulp of the coordinates, the direction (q − p)/|q − p| is
 // rounding noise: the segment is taken as crossing the mid-surface.
 constexpr float kMinDirectionDistanceM = 1e-9F;
@@ -16,47 +24,8 @@ constexpr float kDirectionUlps = 16.0F;
 // Distances within this many ulp of the coordinates are equal when choosing the closest triangle.
 constexpr float kTieUlps = 4.0F;
 
-Vec3 vertex_position(const TriangleMeshView& mesh, std::uint32_t vertex) noexcept {
-  const std::size_t base = 3 * static_cast<std::size_t>(vertex);
-  return {mesh.positions_m[base], mesh.positions_m[base + 1], mesh.positions_m[base + 2]};
-}
-
-// False when the triangle id or one of its vertices is outside the mesh (a grid built from
-// other arrays): the triangle is then skipped.
-bool triangle_vertices(const TriangleMeshView& mesh, std::uint32_t triangle,
-                       std::uint32_t (&vertices)[3]) noexcept {
-  const std::size_t base = 3 * static_cast<std::size_t>(triangle);
-  if (base + 2 >= mesh.triangles.size()) return false;
-  const std::size_t vertex_count = mesh.positions_m.size() / 3;
-  for (std::size_t corner = 0; corner < 3; ++corner) {
-    vertices[corner] = mesh.triangles[base + corner];
-    if (vertices[corner] >= vertex_count) return false;
-  }
-  return true;
-}
-
-bool contains(const std::uint32_t (&vertices)[3], std::uint32_t vertex) noexcept {
-  return vertices[0] == vertex || vertices[1] == vertex || vertices[2] == vertex;
-}
-
 bool is_finite(const Vec3& v) noexcept {
   return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
-Vec3 face_normal(const TriangleMeshView& mesh, const std::uint32_t (&vertices)[3]) noexcept {
-  return triangle_normal(vertex_position(mesh, vertices[0]), vertex_position(mesh, vertices[1]),
-                         vertex_position(mesh, vertices[2]));
-}
-
-// Interior angle (rad) at the corner whose vertex id is `vertex`.
-float corner_angle(const TriangleMeshView& mesh, const std::uint32_t (&vertices)[3],
-                   std::uint32_t vertex) noexcept {
-  int corner = 0;
-  while (corner < 2 && vertices[corner] != vertex) ++corner;
-  const Vec3 apex = vertex_position(mesh, vertices[corner]);
-  const Vec3 first = vertex_position(mesh, vertices[(corner + 1) % 3]) - apex;
-  const Vec3 second = vertex_position(mesh, vertices[(corner + 2) % 3]) - apex;
-  return std::atan2(first.cross(second).norm(), first.dot(second));
 }
 
 // Obliquities (sines) closer than this are equal when breaking a distance tie.
