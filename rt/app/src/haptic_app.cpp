@@ -115,8 +115,9 @@ constexpr float kForcepsTipRadiusM = 0.001F;
 constexpr float kSurfaceMarginM = 0.02F;
 // Slack of the surfaces' bucket grids, in cells: a rebuild stores every triangle with its box
 // grown by it, so the grid stays right until a vertex has moved that far (BucketGrid). A
-// quarter cell (~0.5 mm on the duct) costs ~1.5× the entries and rebuilds about every
-// 0.5 mm of motion instead of every cycle (docs/collision.md).
+// quarter cell (~0.75 mm on the duct) triples the (triangle, cell) entries of a duct-like tube
+// (1,568 → 4,864, within max_entries = 27 per triangle) and rebuilds only when the wall has
+// moved that far instead of every cycle (docs/collision.md).
 constexpr float kGridSlackCells = 0.25F;
 // Shaft and jaws against a duct wall: the touched wall point is imposed this far inside the
 // capsule's reach (not at its edge), so the contact persists from one cycle to the next instead
