@@ -19,10 +19,6 @@ std::string number(double value) {
   return text;
 }
 
-bool finite_vector(const Catheter::Vec3& v) noexcept {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
 }  // namespace
 
 std::uint64_t Catheter::substeps_for(double period_s, double substep_s) noexcept {
@@ -59,7 +55,7 @@ core::Expected<Catheter> Catheter::create(const CatheterParams& params, const Ca
     return refuse("haptic_period_s = " + number(setup.haptic_period_s) + ": expected > 0");
   }
   if (setup.max_substeps == 0) return refuse("max_substeps = 0: expected >= 1");
-  if (!finite_vector(setup.start_position_m)) return refuse("start_position_m is not finite");
+  if (!setup.start_position_m.allFinite()) return refuse("start_position_m is not finite");
   const float direction_norm = setup.direction.norm();
   if (!positive_finite(direction_norm)) return refuse("direction: expected a finite non-zero vector");
 
@@ -136,7 +132,7 @@ core::Expected<Catheter> Catheter::create(const CatheterParams& params, const Ca
 
 core::Status Catheter::add_force(std::uint32_t particle, const Vec3& force_n) noexcept {
   if (particle >= count_) return {core::StatusCode::invalid_argument, "catheter: unknown particle"};
-  if (!finite_vector(force_n)) return {core::StatusCode::numeric_error, "catheter: non-finite force"};
+  if (!force_n.allFinite()) return {core::StatusCode::numeric_error, "catheter: non-finite force"};
   external_n_[particle] += force_n;
   return core::Status::ok();
 }
@@ -147,7 +143,7 @@ void Catheter::clear_forces() noexcept {
 
 core::Status Catheter::hold(std::uint32_t particle, const Vec3& position_m) noexcept {
   if (particle >= count_) return {core::StatusCode::invalid_argument, "catheter: unknown particle"};
-  if (!finite_vector(position_m)) return {core::StatusCode::numeric_error, "catheter: non-finite hold target"};
+  if (!position_m.allFinite()) return {core::StatusCode::numeric_error, "catheter: non-finite hold target"};
   held_[particle] = 1;
   hold_targets_m_[particle] = position_m;
   return core::Status::ok();
@@ -172,8 +168,8 @@ core::Status Catheter::set_contact_planes(std::span<const ContactPlane> planes) 
         !(plane.weight_b <= 1.0F)) {
       return {core::StatusCode::invalid_argument, "catheter: contact plane names an unknown particle or weight"};
     }
-    if (!finite_vector(plane.point_m) || !finite_vector(plane.normal) ||
-        !finite_vector(plane.surface_velocity_m_per_s) || !std::isfinite(plane.reach_m) ||
+    if (!plane.point_m.allFinite() || !plane.normal.allFinite() ||
+        !plane.surface_velocity_m_per_s.allFinite() || !std::isfinite(plane.reach_m) ||
         !std::isfinite(plane.stiffness_n_per_m) || !std::isfinite(plane.damping_n_s_per_m) ||
         !std::isfinite(plane.max_force_n)) {
       return {core::StatusCode::numeric_error, "catheter: non-finite contact plane"};
@@ -246,7 +242,7 @@ bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
     }
     velocities_[i] += dt_over_mass * forces[i];  // eq. 28: v_{t+Δt} = v_t + Δt a_t
     positions_[i] += dt_s * velocities_[i];      //          p_{t+Δt} = p_t + Δt v_{t+Δt}
-    finite = finite && finite_vector(positions_[i]) && finite_vector(velocities_[i]);
+    finite = finite && positions_[i].allFinite() && velocities_[i].allFinite();
   }
   return finite;
 }

@@ -9,12 +9,10 @@
 namespace trainer::model {
 namespace {
 
-bool finite(const Vec3& v) noexcept { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
-
 bool finite_shape(const ForcepsShape& shape) noexcept {
-  return finite(shape.shaft_start_m) && finite(shape.hinge_m) && finite(shape.jaw_tips_m[0]) &&
-         finite(shape.jaw_tips_m[1]) && finite(shape.direction) && finite(shape.opening_direction) &&
-         std::isfinite(shape.grip_rad) && finite(shape.velocity_m_per_s);
+  return shape.shaft_start_m.allFinite() && shape.hinge_m.allFinite() && shape.jaw_tips_m[0].allFinite() &&
+         shape.jaw_tips_m[1].allFinite() && shape.direction.allFinite() && shape.opening_direction.allFinite() &&
+         std::isfinite(shape.grip_rad) && shape.velocity_m_per_s.allFinite();
 }
 
 // The tool's three segments: shaft start → hinge, hinge → jaw tip 0, hinge → jaw tip 1.
@@ -228,7 +226,7 @@ core::Status ForcepsCatheterContact::collect(Catheter& catheter,
   const float total_squeeze = squeeze_n_[0] + squeeze_n_[1];
   const bool settled = grasp_age_cycles_ >= settings_.grasp_settle_cycles;
   if (grasp_age_cycles_ < settings_.grasp_settle_cycles) ++grasp_age_cycles_;
-  if (!finite(pull) || (settled && pull.norm() > settings_.friction_coefficient * total_squeeze)) {
+  if (!pull.allFinite() || (settled && pull.norm() > settings_.friction_coefficient * total_squeeze)) {
     drop_grasp(catheter);  // slips out of the jaws
     ++slip_count_;
     regrasp_wait_ = settings_.regrasp_delay_cycles;

@@ -26,10 +26,6 @@ bool share_vertex(const std::uint32_t (&first)[3], const std::uint32_t (&second)
   return contains(second, first[0]) || contains(second, first[1]) || contains(second, first[2]);
 }
 
-bool is_finite(const Vec3& v) noexcept {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
 // The two vertex ids of edge `feature` (edge i joins corner i and corner i + 1).
 void edge_vertices(const std::uint32_t (&vertices)[3], TriangleFeature feature, std::uint32_t& first,
                    std::uint32_t& second) noexcept {
@@ -155,7 +151,7 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
       const Vec3 velocity =
           particle_velocities_m_per_s.empty() ? Vec3::Zero() : particle_velocities_m_per_s[particle];
       core::Status particle_status = core::Status::ok();
-      if (!is_finite(centre) || !is_finite(velocity)) {
+      if (!centre.allFinite() || !velocity.allFinite()) {
         particle_status = {core::StatusCode::numeric_error,
                            "particle contact: non-finite particle position or velocity"};
       } else if (reach_m > 0.0F) {  // a zero reach touches nothing (contact needs distance < reach)
@@ -310,7 +306,7 @@ core::Status ParticleSurfaceContact::apply_contact(std::size_t particle, std::ui
   }
   float magnitude = settings_.stiffness_n_per_m * depth -
                     settings_.damping_n_s_per_m * relative_velocity.dot(normal);
-  if (!std::isfinite(magnitude) || !is_finite(normal)) {
+  if (!std::isfinite(magnitude) || !normal.allFinite()) {
     return {core::StatusCode::numeric_error, "particle contact: non-finite contact force"};
   }
   ParticleContactRecord& record = records_[contact_count_++];

@@ -24,10 +24,6 @@ constexpr float kDirectionUlps = 16.0F;
 // Distances within this many ulp of the coordinates are equal when choosing the closest triangle.
 constexpr float kTieUlps = 4.0F;
 
-bool is_finite(const Vec3& v) noexcept {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
 // Obliquities (sines) closer than this are equal when breaking a distance tie.
 constexpr float kObliquityTie = 1e-5F;
 
@@ -156,8 +152,8 @@ core::Status SegmentSurfaceContact::update(std::span<const ToolCapsule> capsules
       return {core::StatusCode::invalid_argument, "segment contact: unknown or repeated tool segment"};
     }
     present[index] = true;
-    if (!is_finite(capsule.start_m) || !is_finite(capsule.end_m) || !is_finite(capsule.start_velocity_m_per_s) ||
-        !is_finite(capsule.end_velocity_m_per_s)) {
+    if (!capsule.start_m.allFinite() || !capsule.end_m.allFinite() || !capsule.start_velocity_m_per_s.allFinite() ||
+        !capsule.end_velocity_m_per_s.allFinite()) {
       return {core::StatusCode::numeric_error, "segment contact: non-finite capsule position or velocity"};
     }
     if (!finite_at_least(capsule.radius_m, 0.0F, false)) {
@@ -303,7 +299,7 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
   const float depth = reach_m - distance;
 
   float magnitude = settings_.stiffness_n_per_m * depth - settings_.damping_n_s_per_m * relative_velocity.dot(normal);
-  if (!std::isfinite(magnitude) || !is_finite(normal) || !is_finite(closest.on_triangle.point)) {
+  if (!std::isfinite(magnitude) || !normal.allFinite() || !closest.on_triangle.point.allFinite()) {
     return {core::StatusCode::numeric_error, "segment contact: non-finite contact force"};
   }
   magnitude = std::max(magnitude, 0.0F);  // separating fast: the damper never pulls

@@ -126,6 +126,15 @@ constexpr float kSegmentSkinM = 5e-4F;
 // The shaft is tested only inside the surface's rest box grown by this much.
 constexpr float kSegmentClipMarginM = 0.01F;
 
+// A forceps tip on a surface. A grid query can never return more than every triangle: sized
+// so, no contact is ever lost to a full candidate list (a few kB per contact on these meshes).
+model::DisplacementContactSettings tip_contact_settings(std::span<const std::uint32_t> triangles) {
+  model::DisplacementContactSettings settings;
+  settings.tip_radius_m = kForcepsTipRadiusM;
+  settings.max_candidates = static_cast<std::uint32_t>(triangles.size() / 3);
+  return settings;
+}
+
 }  // namespace
 
 // The instrument's segments as the catheter contact sees them.
@@ -719,11 +728,7 @@ core::Expected<HapticApp::ModalContactState> HapticApp::make_modal_contact(
                                 state.grid_positions, arena);
   if (!grid) return std::move(grid).error();
   state.grid.emplace(std::move(grid).value());
-  model::DisplacementContactSettings contact_settings;
-  contact_settings.tip_radius_m = kForcepsTipRadiusM;
-  // A query can never return more than every triangle: sized so, no contact is ever lost to a
-  // full candidate list (a few kB per contact on these meshes).
-  contact_settings.max_candidates = static_cast<std::uint32_t>(state.triangles.size() / 3);
+  const model::DisplacementContactSettings contact_settings = tip_contact_settings(state.triangles);
   for (std::size_t i = 0; i < instrument_count; ++i) {
     if ((state.touched_by_mask & (1U << static_cast<unsigned>(i))) == 0) continue;
     auto contact = model::DisplacementContact::create(
@@ -818,11 +823,7 @@ core::Expected<HapticApp::TensorContactState> HapticApp::make_tensor_contact(
                                 state.grid_positions, arena);
   if (!grid) return std::move(grid).error();
   state.grid.emplace(std::move(grid).value());
-  model::DisplacementContactSettings contact_settings;
-  contact_settings.tip_radius_m = kForcepsTipRadiusM;
-  // A query can never return more than every triangle: sized so, no contact is ever lost to a
-  // full candidate list (a few kB per contact on these meshes).
-  contact_settings.max_candidates = static_cast<std::uint32_t>(state.triangles.size() / 3);
+  const model::DisplacementContactSettings contact_settings = tip_contact_settings(state.triangles);
   for (std::size_t i = 0; i < instrument_count; ++i) {
     if ((state.touched_by_mask & (1U << static_cast<unsigned>(i))) == 0) continue;
     auto contact = model::DisplacementContact::create(contact_settings, held.value(), arena);
