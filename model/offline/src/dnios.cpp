@@ -4,6 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include <Eigen/Cholesky>
+
 namespace trainer::model::offline {
 namespace {
 
@@ -101,7 +103,7 @@ void FullNewmark::reset() {
   acceleration_ = Eigen::VectorXd::Zero(free_count);
 }
 
-void FullNewmark::step() {
+Eigen::VectorXd FullNewmark::step_rhs() const {
   // Standard average-acceleration Newmark (Bathe, γ = 1/2, β = 1/4):
   //   F̂ = F_{n+1} + M (a0 u + a2 v + a) + B (a1 u + v),  K̂ u_{n+1} = F̂,
   //   a_{n+1} = a0 (u_{n+1} − u) − a2 v − a,  v_{n+1} = v + Δt/2 (a + a_{n+1}).
@@ -116,12 +118,54 @@ void FullNewmark::step() {
   if (damping_.stiffness_proportional_s != 0.0) {
     rhs += damping_.stiffness_proportional_s * (stiffness_ * damped);
   }
-  const Eigen::VectorXd next = factorisation_->solve(rhs);
+  return rhs;
+}
+
+void FullNewmark::advance(const Eigen::VectorXd& next) {
+  const double dt = time_step_s_;
+  const double a0 = 4.0 / (dt * dt);
+  const double a2 = 4.0 / dt;
   const Eigen::VectorXd next_acceleration =
       a0 * (next - displacement_) - a2 * velocity_ - acceleration_;
   velocity_ += 0.5 * dt * (acceleration_ + next_acceleration);
   acceleration_ = next_acceleration;
   displacement_ = next;
+}
+
+void FullNewmark::step() {
+  advance(factorisation_->solve(step_rhs()));
+}
+
+core::Expected<Eigen::Vector3d> FullNewmark::step_imposed(int node,
+                                                          const Eigen::Vector3d& target_m) {
+  if (auto ok = check_force(node, dofs_.node_count, target_m, "DNIOS imposed displacement"); !ok) {
+    return std::move(ok).error();
+  }
+  int free_dofs[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    free_dofs[axis] = dofs_.free_index[static_cast<std::size_t>(node * kShellDofsPerNode + axis)];
+    if (free_dofs[axis] < 0) {
+      return core::make_error("DNIOS imposed displacement: node " + std::to_string(node) +
+                              " has a fixed translation, expected a free node");
+    }
+  }
+  auto columns = imposed_columns_.find(node);
+  if (columns == imposed_columns_.end()) {
+    Eigen::Matrix<double, Eigen::Dynamic, 3> unit =
+        Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(dofs_.free_count(), 3);
+    for (int axis = 0; axis < 3; ++axis) unit(free_dofs[axis], axis) = 1.0;
+    columns = imposed_columns_.emplace(node, factorisation_->solve(unit)).first;
+  }
+  const Eigen::VectorXd free = factorisation_->solve(step_rhs());
+  Eigen::Matrix3d compliance;
+  Eigen::Vector3d free_node;
+  for (int axis = 0; axis < 3; ++axis) {
+    compliance.row(axis) = columns->second.row(free_dofs[axis]);
+    free_node[axis] = free[free_dofs[axis]];
+  }
+  const Eigen::Vector3d force = compliance.ldlt().solve(target_m - free_node);
+  advance(free + columns->second * force);
+  return force;
 }
 
 Eigen::Vector3d FullNewmark::displacement(int node) const {

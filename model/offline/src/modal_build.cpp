@@ -63,8 +63,9 @@ core::Expected<ModalBuildResult> build_modal_model(const ModalBuildSpec& spec) {
   result.timings.modes_s = seconds_since(start);
 
   const Eigen::VectorXd& omega_squared = result.basis.omega_squared;
-  result.rayleigh = rayleigh_for_ratio(spec.damping_ratio, std::sqrt(omega_squared(0)),
-                                       std::sqrt(omega_squared(omega_squared.size() - 1)));
+  result.rayleigh = spec.damping_override.value_or(
+      rayleigh_for_ratio(spec.damping_ratio, std::sqrt(omega_squared(0)),
+                         std::sqrt(omega_squared(omega_squared.size() - 1))));
   auto damping = modal_damping(omega_squared, DampingModel{0.0, result.rayleigh});
   if (!damping) return core::make_error(where + damping.error().message);
   result.modal_damping = std::move(*damping);

@@ -18,6 +18,7 @@
 // end of that step (F_{n+1}); they stay applied until clear_forces(). Start at rest.
 #pragma once
 
+#include <map>
 #include <memory>
 
 #include <Eigen/Core>
@@ -41,6 +42,15 @@ class FullNewmark {
   core::Expected<void> add_node_force(int node, const Eigen::Vector3d& force_n);
   void clear_forces();
   void step();
+  // One step in which `node`'s translation is imposed: the extra force on it (returned, N)
+  // that makes its displacement at the end of the step equal `target_m`, given the forces
+  // already applied — the reference for the runtime's displacement-driven contact
+  // (ModalModel::solve_imposed). Newmark is linear in F_{n+1}: u_{n+1} = u_free + K̂⁻¹ E f with
+  // E the node's three translational unit vectors, so one back-substitution for u_free plus the
+  // node's three columns of K̂⁻¹ (solved once per node and kept). Refuses an unknown node, a
+  // node with a fixed translation, and a non-finite target. The returned force is not kept
+  // applied: the next step imposes again or runs free.
+  core::Expected<Eigen::Vector3d> step_imposed(int node, const Eigen::Vector3d& target_m);
   void reset();  // back to rest, forces cleared
 
   Eigen::Vector3d displacement(int node) const;  // m; zero for fixed dofs and unknown nodes
@@ -59,7 +69,14 @@ class FullNewmark {
   double time_step_s_ = 0.0;
   // K̂ = LDLᵀ; behind a pointer because Eigen's sparse solvers are not movable.
   std::unique_ptr<Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>> factorisation_;
+  // The free-dof right-hand side of the next step for the applied forces and the state.
+  Eigen::VectorXd step_rhs() const;
+  // Commits u_{n+1} and updates velocity and acceleration.
+  void advance(const Eigen::VectorXd& next);
+
   Eigen::VectorXd force_;
+  // Per node used by step_imposed: K̂⁻¹ E (free × 3), solved on first use.
+  std::map<int, Eigen::Matrix<double, Eigen::Dynamic, 3>> imposed_columns_;
   Eigen::VectorXd displacement_;
   Eigen::VectorXd velocity_;
   Eigen::VectorXd acceleration_;

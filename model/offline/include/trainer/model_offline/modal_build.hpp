@@ -31,6 +31,10 @@ struct ModalBuildSpec {
   double time_step_s = 0.0;           // the haptic period the image is prepared for
   bool static_correction = true;
   std::string surface_set;            // "" = every node with a free translation
+  // Rayleigh damping to use instead of fitting ζ at ω_1 and ω_r: lets builds with different r
+  // share one physical damping (the trade-off sweep and `modelc build --error-budget` fix it
+  // at the definition's own mode count, so changing r changes the reduction, not the tissue).
+  std::optional<RayleighDamping> damping_override;
 };
 
 struct ModalBuildTimings {

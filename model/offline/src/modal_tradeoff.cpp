@@ -1,0 +1,459 @@
+#include "trainer/model_offline/modal_tradeoff.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "trainer/core/arena.hpp"
+#include "trainer/model/modal_model.hpp"
+#include "trainer/model_offline/dnios.hpp"
+
+namespace trainer::model::offline {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double nanoseconds(Clock::duration d) {
+  return std::chrono::duration<double, std::nano>(d).count();
+}
+
+// Order statistic at fraction q of a copy of `values` (nearest rank, as the reports use).
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  const auto rank = static_cast<std::size_t>(
+      std::min<double>(static_cast<double>(values.size()) - 1.0,
+                       std::ceil(q * static_cast<double>(values.size())) - 1.0));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(rank),
+                   values.end());
+  return values[rank];
+}
+
+// Area-weighted vertex normal of `node`, oriented towards the mesh's centroid (inward for a
+// tube or any shell around its centroid).
+Eigen::Vector3d inward_normal(const ShellMesh& mesh, int node) {
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (Eigen::Index t = 0; t < mesh.triangles.rows(); ++t) {
+    const auto tri = mesh.triangles.row(t);
+    if (tri(0) != node && tri(1) != node && tri(2) != node) continue;
+    const Eigen::Vector3d a = mesh.nodes.row(tri(0)).transpose();
+    const Eigen::Vector3d b = mesh.nodes.row(tri(1)).transpose();
+    const Eigen::Vector3d c = mesh.nodes.row(tri(2)).transpose();
+    normal += (b - a).cross(c - a);  // twice the area times the unit normal
+  }
+  if (normal.norm() == 0.0) return normal;
+  normal.normalize();
+  const Eigen::Vector3d centroid = mesh.nodes.colwise().mean().transpose();
+  const Eigen::Vector3d to_centroid = centroid - mesh.nodes.row(node).transpose();
+  return normal.dot(to_centroid) < 0.0 ? Eigen::Vector3d(-normal) : normal;
+}
+
+int nearest_node(const ShellMesh& mesh, const std::vector<int>& candidates,
+                 const Eigen::Vector3d& point) {
+  int best = -1;
+  double best_distance = std::numeric_limits<double>::infinity();
+  for (int node : candidates) {
+    const double d = (mesh.nodes.row(node).transpose() - point).squaredNorm();
+    if (d < best_distance) {
+      best_distance = d;
+      best = node;
+    }
+  }
+  return best;
+}
+
+core::Expected<int> steps_for(const ContactScenario& scenario, double time_step_s) {
+  const double steps = scenario.duration_s() / time_step_s;
+  if (!(steps >= 1.0) || std::abs(steps - std::round(steps)) > 1e-6) {
+    return core::make_error("scenario '" + scenario.name + "': duration " +
+                            std::to_string(scenario.duration_s()) +
+                            " s is not a whole number of steps of " +
+                            std::to_string(time_step_s) + " s");
+  }
+  return static_cast<int>(std::lround(steps));
+}
+
+// The reference force at time t (linear between its samples at (k + 1) Δt_ref; zero at 0).
+Eigen::Vector3d reference_force_at(const std::vector<Eigen::Vector3d>& forces,
+                                   double time_step_s, double t) {
+  const double position = t / time_step_s - 1.0;
+  if (position <= -1.0) return Eigen::Vector3d::Zero();
+  const auto last = static_cast<double>(forces.size() - 1);
+  const double clamped = std::min(position, last);
+  const auto lower = static_cast<std::ptrdiff_t>(std::floor(clamped));
+  const double fraction = clamped - static_cast<double>(lower);
+  const Eigen::Vector3d before =
+      lower < 0 ? Eigen::Vector3d::Zero() : forces[static_cast<std::size_t>(lower)];
+  if (fraction <= 0.0 || lower + 1 > static_cast<std::ptrdiff_t>(last)) return before;
+  return (1.0 - fraction) * before + fraction * forces[static_cast<std::size_t>(lower + 1)];
+}
+
+std::size_t stored_data_bytes(const ModalBuildSpec& spec, const ModalBuildResult& build,
+                              bool static_correction, RuntimePrecision precision) {
+  const auto n = static_cast<std::size_t>(spec.mesh.nodes.rows());
+  const auto r = static_cast<std::size_t>(build.basis.mode_count());
+  const auto s = build.surface_nodes.size();
+  std::size_t values = 3 * n * r + 2 * r + 3 * n;
+  if (static_correction) values += 9 * s * s;
+  return values * (precision == RuntimePrecision::float32 ? sizeof(float) : sizeof(double));
+}
+
+}  // namespace
+
+const char* to_string(RuntimePrecision precision) {
+  return precision == RuntimePrecision::float32 ? "f32" : "f64";
+}
+
+std::string ModalTradeConfig::label() const {
+  char buffer[96];
+  std::snprintf(buffer, sizeof buffer, "r%d %s %s %s dt%.0fus", modes,
+                static_correction ? "sc" : "nosc",
+                element == BendingElement::dkt ? "dkt" : "rao", to_string(precision),
+                time_step_s * 1e6);
+  return buffer;
+}
+
+Eigen::Vector3d scenario_target(const ContactScenario& scenario, const Eigen::Vector3d& inward,
+                                double time_s) {
+  const auto& keys = scenario.keyframes;
+  if (keys.empty()) return Eigen::Vector3d::Zero();
+  if (time_s <= keys.front().time_s) {
+    return keys.front().depth_m * inward + keys.front().drag_m;
+  }
+  for (std::size_t k = 1; k < keys.size(); ++k) {
+    if (time_s <= keys[k].time_s) {
+      const double span = keys[k].time_s - keys[k - 1].time_s;
+      const double w = span > 0.0 ? (time_s - keys[k - 1].time_s) / span : 1.0;
+      const double depth = (1.0 - w) * keys[k - 1].depth_m + w * keys[k].depth_m;
+      const Eigen::Vector3d drag = (1.0 - w) * keys[k - 1].drag_m + w * keys[k].drag_m;
+      return depth * inward + drag;
+    }
+  }
+  return keys.back().depth_m * inward + keys.back().drag_m;
+}
+
+std::vector<ContactScenario> default_duct_scenarios(const ShellMesh& mesh) {
+  const Eigen::Vector3d low = mesh.nodes.colwise().minCoeff().transpose();
+  const Eigen::Vector3d high = mesh.nodes.colwise().maxCoeff().transpose();
+  const Eigen::Vector3d extent = high - low;
+  Eigen::Index axis = 0;
+  extent.maxCoeff(&axis);
+  const auto b = (axis + 1) % 3;
+  const auto c = (axis + 2) % 3;
+  const double rho = 0.5 * std::min(extent[b], extent[c]);
+  // A point on the bounding cylinder: fraction `along` of the length, angle θ around the axis.
+  const auto point = [&](double along, double theta_deg) {
+    const double theta = theta_deg * M_PI / 180.0;
+    Eigen::Vector3d p = 0.5 * (low + high);
+    p[axis] = low[axis] + along * extent[axis];
+    p[b] += 0.5 * extent[b] * std::cos(theta);
+    p[c] += 0.5 * extent[c] * std::sin(theta);
+    return p;
+  };
+  Eigen::Vector3d along_axis = Eigen::Vector3d::Zero();
+  along_axis[axis] = 1.0;
+  const auto press = [&](std::string name, std::string description, bool tuning, double along,
+                         double theta_deg, double depth_fraction, double ramp_s) {
+    ContactScenario s;
+    s.name = std::move(name);
+    s.description = std::move(description);
+    s.tuning = tuning;
+    s.point_m = point(along, theta_deg);
+    s.keyframes = {{0.0, 0.0, Eigen::Vector3d::Zero()},
+                   {ramp_s, depth_fraction * rho, Eigen::Vector3d::Zero()},
+                   {0.2, depth_fraction * rho, Eigen::Vector3d::Zero()}};
+    return s;
+  };
+  std::vector<ContactScenario> scenarios;
+  scenarios.push_back(press("press-mid-top", "mid-length, 0.25 rho deep, 30 ms ramp, hold", true,
+                            0.5, 90.0, 0.25, 0.03));
+  scenarios.push_back(press("press-end-fast", "near the free end, 0.5 rho deep, 10 ms ramp, hold",
+                            true, 0.9, 0.0, 0.5, 0.01));
+  scenarios.push_back(press("press-quarter-bottom",
+                            "quarter length, 0.35 rho deep, 20 ms ramp, hold", false, 0.3, 270.0,
+                            0.35, 0.02));
+  scenarios.push_back(press("press-deep", "60 % of the length, 0.7 rho deep, 50 ms ramp, hold",
+                            false, 0.6, 200.0, 0.7, 0.05));
+  ContactScenario drag = press("press-and-drag",
+                               "45 % of the length, 0.25 rho deep in 20 ms, then dragged "
+                               "0.3 rho along the axis over 100 ms (the sticking tip), hold",
+                               false, 0.45, 90.0, 0.25, 0.02);
+  drag.keyframes = {{0.0, 0.0, Eigen::Vector3d::Zero()},
+                    {0.02, 0.25 * rho, Eigen::Vector3d::Zero()},
+                    {0.12, 0.25 * rho, 0.3 * rho * along_axis},
+                    {0.2, 0.25 * rho, 0.3 * rho * along_axis}};
+  scenarios.push_back(std::move(drag));
+  return scenarios;
+}
+
+ModalBuildSpec DuctTradeStudy::spec_for(const ModalTradeConfig& config) const {
+  ModalBuildSpec spec = definition_;
+  spec.mode_count = config.modes;
+  spec.static_correction = config.static_correction;
+  spec.bending = config.element;
+  spec.time_step_s = config.time_step_s;
+  spec.damping_override = damping_;
+  return spec;
+}
+
+core::Expected<std::shared_ptr<const ModalBuildResult>> DuctTradeStudy::build_for(
+    const ModalTradeConfig& config, double* build_s) {
+  const auto key = std::make_tuple(static_cast<int>(config.element), config.modes,
+                                   config.static_correction);
+  auto found = builds_.find(key);
+  if (found == builds_.end()) {
+    const auto start = Clock::now();
+    auto built = build_modal_model(spec_for(config));
+    if (!built) return std::move(built).error();
+    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    found = builds_
+                .emplace(key, std::make_pair(std::make_shared<const ModalBuildResult>(
+                                                 std::move(*built)),
+                                             seconds))
+                .first;
+  }
+  if (build_s != nullptr) *build_s = found->second.second;
+  return found->second.first;
+}
+
+core::Expected<std::unique_ptr<DuctTradeStudy>> DuctTradeStudy::create(
+    ModalBuildSpec definition, std::vector<ContactScenario> scenarios,
+    double reference_time_step_s) {
+  if (!(reference_time_step_s > 0.0)) {
+    return core::make_error("trade study: reference time step " +
+                            std::to_string(reference_time_step_s) + " s, expected > 0");
+  }
+  if (scenarios.empty()) return core::make_error("trade study: no scenarios");
+  std::unique_ptr<DuctTradeStudy> study(new DuctTradeStudy());
+  study->definition_ = std::move(definition);
+  study->scenarios_ = std::move(scenarios);
+  study->reference_time_step_s_ = reference_time_step_s;
+
+  const auto start = Clock::now();
+  ModalBuildSpec reference_spec = study->definition_;
+  reference_spec.static_correction = false;  // the reference needs the assembly and ω_1..ω_r
+  auto reference_build = build_modal_model(reference_spec);
+  if (!reference_build) return std::move(reference_build).error();
+  study->damping_ = reference_build->rayleigh;
+  study->reference_build_s_ = std::chrono::duration<double>(Clock::now() - start).count();
+
+  std::vector<double> step_times;
+  for (const ContactScenario& scenario : study->scenarios_) {
+    auto steps = steps_for(scenario, reference_time_step_s);
+    if (!steps) return std::move(steps).error();
+    ReferenceHistory history;
+    history.contact_node =
+        nearest_node(study->definition_.mesh, reference_build->surface_nodes, scenario.point_m);
+    if (history.contact_node < 0) return core::make_error("trade study: no surface node");
+    history.inward = inward_normal(study->definition_.mesh, history.contact_node);
+    auto dnios = FullNewmark::create(reference_build->shell, study->damping_,
+                                     reference_time_step_s);
+    if (!dnios) return std::move(dnios).error();
+    for (int step = 1; step <= *steps; ++step) {
+      const double t = step * reference_time_step_s;
+      const auto step_start = Clock::now();
+      auto force = dnios->step_imposed(history.contact_node,
+                                       scenario_target(scenario, history.inward, t));
+      step_times.push_back(nanoseconds(Clock::now() - step_start));
+      if (!force) return core::make_error("scenario '" + scenario.name + "': " +
+                                          force.error().message);
+      history.forces.push_back(*force);
+    }
+    study->references_.push_back(std::move(history));
+  }
+  study->reference_step_ns_ = percentile(std::move(step_times), 0.5);
+  return study;
+}
+
+core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& config,
+                                                        const CycleCostOptions& cost_options) {
+  const double ratio = config.time_step_s / reference_time_step_s_;
+  if (!(ratio >= 1.0 - 1e-9) || std::abs(ratio - std::round(ratio)) > 1e-6) {
+    return core::make_error("trade study: time step " + std::to_string(config.time_step_s) +
+                            " s is not a multiple of the reference step " +
+                            std::to_string(reference_time_step_s_) + " s");
+  }
+  if (config.precision != RuntimePrecision::float32) {
+    return core::make_error("trade study: runtime precision " +
+                            std::string(to_string(config.precision)) + " is not available");
+  }
+  ModalTradePoint point;
+  point.config = config;
+  auto built = build_for(config, &point.precompute_s);
+  if (!built) return std::move(built).error();
+  const ModalBuildResult& build = **built;
+  const ModalBuildSpec spec = spec_for(config);
+  point.data_bytes = stored_data_bytes(spec, build, config.static_correction, config.precision);
+
+  const FloatModalData data(spec, build);
+  ModalSettings settings;
+  settings.time_step_s = static_cast<float>(config.time_step_s);
+  settings.active_modes = static_cast<std::uint32_t>(config.modes);
+  settings.static_correction = config.static_correction;
+  auto arena = core::Arena::create(std::size_t{4} << 20);
+  if (!arena) return std::move(arena).error();
+  auto model = ModalModel::create(data.view(), *arena, settings);
+  if (!model) return std::move(model).error();
+
+  // Accuracy: every scenario against its reference.
+  for (std::size_t index = 0; index < scenarios_.size(); ++index) {
+    const ContactScenario& scenario = scenarios_[index];
+    const ReferenceHistory& reference = references_[index];
+    auto steps = steps_for(scenario, config.time_step_s);
+    if (!steps) return std::move(steps).error();
+    model->reset();
+    double reference_peak = 0.0;
+    double difference_peak = 0.0;
+    double reference_sq = 0.0;
+    double difference_sq = 0.0;
+    for (int step = 1; step <= *steps; ++step) {
+      const double t = step * config.time_step_s;
+      const ImposedDisplacement target{static_cast<std::uint32_t>(reference.contact_node),
+                                       scenario_target(scenario, reference.inward, t).cast<float>()};
+      Vec3 force = Vec3::Zero();
+      model->clear_forces();
+      if (const core::Status solved = model->solve_imposed({&target, 1}, {&force, 1}); !solved) {
+        return core::make_error("scenario '" + scenario.name + "', " + config.label() +
+                                ": solve_imposed refused: " + solved.detail());
+      }
+      (void)model->step();
+      const Eigen::Vector3d expected =
+          reference_force_at(reference.forces, reference_time_step_s_, t);
+      const double difference = (force.cast<double>() - expected).norm();
+      reference_peak = std::max(reference_peak, expected.norm());
+      difference_peak = std::max(difference_peak, difference);
+      reference_sq += expected.squaredNorm();
+      difference_sq += difference * difference;
+    }
+    ScenarioError error;
+    error.scenario = scenario.name;
+    error.tuning = scenario.tuning;
+    error.contact_node = reference.contact_node;
+    error.reference_peak_force_n = reference_peak;
+    error.peak_error = reference_peak > 0.0 ? difference_peak / reference_peak : 0.0;
+    error.rms_error = reference_sq > 0.0 ? std::sqrt(difference_sq / reference_sq) : 0.0;
+    (error.tuning ? point.tuning_error : point.validation_error) =
+        std::max(error.tuning ? point.tuning_error : point.validation_error, error.peak_error);
+    point.worst_error = std::max(point.worst_error, error.peak_error);
+    point.errors.push_back(std::move(error));
+  }
+
+  // Cost: one tool pressing and releasing at the first scenario's node, a 4 Hz depth cycle.
+  const ReferenceHistory& reference = references_.front();
+  const double depth_m = scenarios_.front().keyframes.back().depth_m;
+  std::vector<float> surface(3 * static_cast<std::size_t>(model->node_count()));
+  std::vector<double> total_ns;
+  std::vector<double> haptic_ns;
+  std::vector<double> repetition_medians;
+  model->reset();
+  const int total_cycles =
+      cost_options.warmup_cycles + cost_options.repetitions * cost_options.cycles_per_repetition;
+  std::vector<double> repetition;
+  for (int cycle = 0; cycle < total_cycles; ++cycle) {
+    const double t = cycle * config.time_step_s;
+    const double depth = depth_m * (0.5 - 0.5 * std::cos(2.0 * M_PI * 4.0 * t));
+    const ImposedDisplacement target{static_cast<std::uint32_t>(reference.contact_node),
+                                     (depth * reference.inward).cast<float>()};
+    Vec3 force;
+    const auto start = Clock::now();
+    model->clear_forces();
+    (void)model->solve_imposed({&target, 1}, {&force, 1});
+    (void)model->step();
+    const auto stepped = Clock::now();
+    (void)model->reconstruct(surface);
+    const auto end = Clock::now();
+    if (cycle < cost_options.warmup_cycles) continue;
+    total_ns.push_back(nanoseconds(end - start));
+    haptic_ns.push_back(nanoseconds(stepped - start));
+    repetition.push_back(total_ns.back());
+    if (static_cast<int>(repetition.size()) == cost_options.cycles_per_repetition) {
+      repetition_medians.push_back(percentile(repetition, 0.5));
+      repetition.clear();
+    }
+  }
+  point.cost.median_ns = percentile(total_ns, 0.5);
+  point.cost.p99_ns = percentile(total_ns, 0.99);
+  point.cost.haptic_median_ns = percentile(haptic_ns, 0.5);
+  point.cost.haptic_p99_ns = percentile(haptic_ns, 0.99);
+  if (!repetition_medians.empty()) {
+    point.cost.repetition_median_min_ns =
+        *std::min_element(repetition_medians.begin(), repetition_medians.end());
+    point.cost.repetition_median_max_ns =
+        *std::max_element(repetition_medians.begin(), repetition_medians.end());
+  }
+  point.cost.warmup_cycles = cost_options.warmup_cycles;
+  point.cost.repetitions = cost_options.repetitions;
+  point.cost.cycles_per_repetition = cost_options.cycles_per_repetition;
+  return point;
+}
+
+core::Expected<BudgetChoice> choose_for_budget(DuctTradeStudy& study, double budget,
+                                               const std::vector<ModalTradeConfig>& candidates,
+                                               const CycleCostOptions& cost_options) {
+  if (!(budget > 0.0) || !std::isfinite(budget)) {
+    return core::make_error("error budget " + std::to_string(100.0 * budget) +
+                            " %, expected a finite value > 0");
+  }
+  if (candidates.empty()) return core::make_error("error budget: no candidate configurations");
+  BudgetChoice choice;
+  for (const ModalTradeConfig& config : candidates) {
+    auto point = study.measure(config, cost_options);
+    if (!point) return std::move(point).error();
+    choice.candidates.push_back(std::move(*point));
+  }
+  // Cheapest first; within 5 % of each other, fewer modes and no correction first.
+  std::vector<ModalTradePoint>& sorted = choice.candidates;
+  std::sort(sorted.begin(), sorted.end(), [](const ModalTradePoint& a, const ModalTradePoint& b) {
+    return a.cost.median_ns < b.cost.median_ns;
+  });
+  const auto simpler = [](const ModalTradePoint& a, const ModalTradePoint& b) {
+    if (a.config.modes != b.config.modes) return a.config.modes < b.config.modes;
+    return !a.config.static_correction && b.config.static_correction;
+  };
+  const ModalTradePoint* chosen = nullptr;
+  for (const ModalTradePoint& point : sorted) {
+    char line[256];
+    if (point.tuning_error > budget) {
+      std::snprintf(line, sizeof line, "%s: tuning error %.3f %% > budget", point.config.label().c_str(),
+                    100.0 * point.tuning_error);
+      choice.log.emplace_back(line);
+      continue;
+    }
+    if (point.validation_error > budget) {
+      std::snprintf(line, sizeof line,
+                    "%s: tuning error %.3f %% within budget but held-out error %.3f %% > budget",
+                    point.config.label().c_str(), 100.0 * point.tuning_error,
+                    100.0 * point.validation_error);
+      choice.log.emplace_back(line);
+      continue;
+    }
+    if (chosen == nullptr) {
+      chosen = &point;
+    } else if (point.cost.median_ns <= 1.05 * chosen->cost.median_ns && simpler(point, *chosen)) {
+      std::snprintf(line, sizeof line, "%s preferred to %s: within 5 %% of its cost, simpler",
+                    point.config.label().c_str(), chosen->config.label().c_str());
+      choice.log.emplace_back(line);
+      chosen = &point;
+    }
+  }
+  if (chosen == nullptr) {
+    const auto best = std::min_element(
+        sorted.begin(), sorted.end(), [](const ModalTradePoint& a, const ModalTradePoint& b) {
+          return std::max(a.tuning_error, a.validation_error) <
+                 std::max(b.tuning_error, b.validation_error);
+        });
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "no configuration meets the error budget %.3f %%: the most accurate, %s, has "
+                  "tuning error %.3f %% and held-out error %.3f %%",
+                  100.0 * budget, best->config.label().c_str(), 100.0 * best->tuning_error,
+                  100.0 * best->validation_error);
+    return core::make_error(line);
+  }
+  choice.chosen = *chosen;
+  return choice;
+}
+
+}  // namespace trainer::model::offline
