@@ -1,0 +1,314 @@
+// tradeoff: the speed/accuracy trade of every model a scene names, measured. For each knob a
+// user trades (the duct's mode count, static correction, bending element, runtime precision
+// and time step; the catheter's particle count; the tensor model's contact cap) it measures the
+// cost per cycle (warm-up, repetitions, median and p99) and the error of the force felt against
+// the model's reference over contact scenarios, then writes CSV and JSON, a Pareto plot per
+// model and the cheapest configuration for each error budget. Usage: `tradeoff --help`;
+// results and how to read them: docs/performance.md, "Speed/accuracy trade".
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "model_spec.hpp"
+#include "pareto.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/model_offline/modal_tradeoff.hpp"
+
+namespace {
+
+namespace offline = trainer::model::offline;
+namespace config = trainer::config;
+using trainer::tools::tradeoff::TradePoint;
+
+struct Options {
+  std::string scene_path;
+  std::string out_directory = "out/tradeoff";
+  std::string only;
+  bool quick = false;
+  std::vector<double> budgets_percent{1.0, 2.0, 5.0, 10.0};
+  double reference_step_us = 250.0;
+  offline::CycleCostOptions cost;
+};
+
+template <class T>
+T value_or_throw(trainer::core::Expected<T> expected) {
+  if (!expected) throw std::runtime_error(expected.error().message);
+  return std::move(expected).value();
+}
+
+std::string format(const char* pattern, double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, pattern, value);
+  return buffer;
+}
+
+// Cost of one configuration per millisecond of simulated time: a 4 kHz model costs four cycles
+// where a 1 kHz one costs one.
+double cost_per_ms_ns(const offline::ModalTradePoint& point) {
+  return point.cost.median_ns * (1e-3 / point.config.time_step_s);
+}
+
+struct SweepEntry {
+  std::string sweep;
+  offline::ModalTradeConfig config;
+};
+
+std::vector<SweepEntry> duct_sweep(const offline::ModalBuildSpec& definition, bool quick) {
+  std::vector<SweepEntry> sweep;
+  offline::ModalTradeConfig base;
+  base.element = definition.bending;
+  base.time_step_s = definition.time_step_s;
+  const std::vector<int> modes = quick ? std::vector<int>{5, 10, 40}
+                                       : std::vector<int>{5, 10, 20, 40, 80, 160};
+  for (int r : modes) {
+    for (bool correction : {false, true}) {
+      offline::ModalTradeConfig c = base;
+      c.modes = r;
+      c.static_correction = correction;
+      sweep.push_back({"modes x static correction", c});
+    }
+  }
+  const offline::BendingElement other = definition.bending == offline::BendingElement::dkt
+                                            ? offline::BendingElement::rao
+                                            : offline::BendingElement::dkt;
+  for (int r : quick ? std::vector<int>{40} : std::vector<int>{10, 20, 40, 80}) {
+    offline::ModalTradeConfig c = base;
+    c.modes = r;
+    c.element = other;
+    sweep.push_back({other == offline::BendingElement::rao ? "Rao element" : "DKT element", c});
+  }
+  // The time step is the loop period: a scene's [loop] period_us, not an image knob.
+  for (double step_s : quick ? std::vector<double>{5e-4} : std::vector<double>{2.5e-4, 5e-4, 2e-3}) {
+    if (std::abs(step_s - base.time_step_s) < 1e-12) continue;
+    for (int r : quick ? std::vector<int>{40} : std::vector<int>{5, 10, 20, 40}) {
+      offline::ModalTradeConfig c = base;
+      c.modes = r;
+      c.time_step_s = step_s;
+      sweep.push_back({"time step x modes (static correction)", c});
+    }
+  }
+  return sweep;
+}
+
+nlohmann::json run_duct(const Options& options, const std::string& name,
+                        const config::ModelDefinition& definition,
+                        const std::filesystem::path& directory) {
+  const offline::ModalBuildSpec spec =
+      value_or_throw(trainer::tools::modelc::modal_spec_from(definition));
+  std::vector<offline::ContactScenario> scenarios = offline::default_duct_scenarios(spec.mesh);
+  std::cout << "model '" << name << "' (modal shell, " << spec.mesh.nodes.rows()
+            << " nodes): reference = DNIOS at " << options.reference_step_us << " us, "
+            << scenarios.size() << " scenarios\n";
+  auto study = value_or_throw(offline::DuctTradeStudy::create(
+      spec, std::move(scenarios), options.reference_step_us * 1e-6));
+  std::cout << "  reference built in " << format("%.2f", study->reference_build_s())
+            << " s, DNIOS step median " << format("%.0f", study->reference_step_ns()) << " ns\n";
+
+  std::vector<offline::ModalTradePoint> points;
+  std::vector<std::string> sweeps;
+  for (const SweepEntry& entry : duct_sweep(spec, options.quick)) {
+    offline::ModalTradePoint point = value_or_throw(study->measure(entry.config, options.cost));
+    std::printf("  %-28s %-26s cost %8.0f ns (p99 %8.0f)  tuning %7.3f %%  held-out %7.3f %%\n",
+                entry.sweep.c_str(), point.config.label().c_str(), point.cost.median_ns,
+                point.cost.p99_ns, 100.0 * point.tuning_error, 100.0 * point.validation_error);
+    points.push_back(std::move(point));
+    sweeps.push_back(entry.sweep);
+  }
+
+  // CSV: one row per configuration, and one per configuration and scenario.
+  {
+    std::ofstream csv(directory / (name + ".csv"));
+    csv << "sweep,label,modes,static_correction,element,precision,time_step_us,precompute_s,"
+           "data_bytes,cost_median_ns,cost_p99_ns,haptic_median_ns,haptic_p99_ns,"
+           "repetition_median_min_ns,repetition_median_max_ns,cost_per_ms_ns,tuning_error,"
+           "validation_error,worst_error,worst_peak_error\n";
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const auto& p = points[i];
+      csv << '"' << sweeps[i] << "\",\"" << p.config.label() << "\"," << p.config.modes << ','
+          << (p.config.static_correction ? 1 : 0) << ','
+          << (p.config.element == offline::BendingElement::dkt ? "dkt" : "rao") << ','
+          << offline::to_string(p.config.precision) << ',' << p.config.time_step_s * 1e6 << ','
+          << p.precompute_s << ',' << p.data_bytes << ',' << p.cost.median_ns << ','
+          << p.cost.p99_ns << ',' << p.cost.haptic_median_ns << ',' << p.cost.haptic_p99_ns << ','
+          << p.cost.repetition_median_min_ns << ',' << p.cost.repetition_median_max_ns << ','
+          << cost_per_ms_ns(p) << ',' << p.tuning_error << ',' << p.validation_error << ','
+          << p.worst_error << ',' << p.worst_peak_error << '\n';
+    }
+    std::ofstream scenarios_csv(directory / (name + "_scenarios.csv"));
+    scenarios_csv << "label,scenario,tuning,contact_node,peak_error,rms_error,"
+                     "reference_peak_force_n\n";
+    for (const auto& p : points) {
+      for (const auto& e : p.errors) {
+        scenarios_csv << '"' << p.config.label() << "\"," << e.scenario << ','
+                      << (e.tuning ? 1 : 0) << ',' << e.contact_node << ',' << e.peak_error << ','
+                      << e.rms_error << ',' << e.reference_peak_force_n << '\n';
+      }
+    }
+  }
+
+  std::vector<TradePoint> plotted;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    plotted.push_back({sweeps[i], points[i].config.label(), points[i].worst_error,
+                       cost_per_ms_ns(points[i])});
+  }
+  const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
+      directory, name, "'" + name + "': force error vs DNIOS against cost per cycle", plotted);
+  if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
+
+  // Recommendation per budget, chosen on the tuning scenarios and checked on the held-out ones
+  // (as `modelc build --error-budget` does): (a) among what an image carries — mode count and
+  // static correction at the definition's element and time step; (b) also trading the loop
+  // period (time step), by cost per millisecond of simulated time.
+  std::vector<offline::ModalTradePoint> image_points;
+  std::vector<offline::ModalTradePoint> period_points;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (sweeps[i] == "modes x static correction") image_points.push_back(points[i]);
+    if (points[i].config.element == spec.bending &&
+        points[i].config.precision == offline::RuntimePrecision::float32) {
+      period_points.push_back(points[i]);
+    }
+  }
+  nlohmann::json recommendations = nlohmann::json::array();
+  const auto recommend = [&](const std::vector<offline::ModalTradePoint>& candidates,
+                             const std::string& among) {
+    std::cout << "  recommendation, " << among << ":\n";
+    for (double budget_percent : options.budgets_percent) {
+      std::vector<std::string> log;
+      auto selected = offline::select_for_budget(candidates, budget_percent / 100.0, &log);
+      if (!selected) {
+        std::cout << "    budget " << budget_percent << " %: " << selected.error().message << "\n";
+        recommendations.push_back({{"among", among},
+                                   {"budget_percent", budget_percent},
+                                   {"met", false},
+                                   {"reason", selected.error().message}});
+        continue;
+      }
+      const auto& chosen = candidates[*selected];
+      std::printf("    budget %5.2f %%: r = %d, static correction %s, step %.0f us: %.0f ns per "
+                  "cycle (p99 %.0f), %.0f ns per ms; tuning error %.3f %%, held-out %.3f %%\n",
+                  budget_percent, chosen.config.modes,
+                  chosen.config.static_correction ? "on" : "off", chosen.config.time_step_s * 1e6,
+                  chosen.cost.median_ns, chosen.cost.p99_ns, cost_per_ms_ns(chosen),
+                  100.0 * chosen.tuning_error, 100.0 * chosen.validation_error);
+      recommendations.push_back({{"among", among},
+                                 {"budget_percent", budget_percent},
+                                 {"met", true},
+                                 {"modes", chosen.config.modes},
+                                 {"static_correction", chosen.config.static_correction},
+                                 {"time_step_s", chosen.config.time_step_s},
+                                 {"label", chosen.config.label()},
+                                 {"cost_median_ns", chosen.cost.median_ns},
+                                 {"cost_p99_ns", chosen.cost.p99_ns},
+                                 {"cost_per_ms_ns", cost_per_ms_ns(chosen)},
+                                 {"tuning_error", chosen.tuning_error},
+                                 {"validation_error", chosen.validation_error},
+                                 {"passed_over", log}});
+    }
+  };
+  recommend(image_points, "image knobs at the definition's time step (modelc build --error-budget)");
+  recommend(period_points, "image knobs and the loop period");
+  nlohmann::json front = nlohmann::json::array();
+  for (std::size_t i : trainer::tools::tradeoff::pareto_front(plotted)) {
+    front.push_back({{"label", plotted[i].label},
+                     {"error", plotted[i].error},
+                     {"cost_per_ms_ns", plotted[i].cost_ns}});
+  }
+  nlohmann::json scenario_json = nlohmann::json::array();
+  for (const auto& s : study->scenarios()) {
+    scenario_json.push_back({{"name", s.name}, {"description", s.description}, {"tuning", s.tuning}});
+  }
+  return {{"name", name},
+          {"kind", "modal_shell"},
+          {"definition", definition.source_path.string()},
+          {"reference", "DNIOS (full Newmark, double) with the same imposed displacement"},
+          {"reference_time_step_s", study->reference_time_step_s()},
+          {"reference_step_median_ns", study->reference_step_ns()},
+          {"scenarios", scenario_json},
+          {"csv", (directory / (name + ".csv")).string()},
+          {"plot", plot_problem.empty() ? (directory / (name + ".png")).string() : ""},
+          {"pareto_front", front},
+          {"recommendations", recommendations}};
+}
+
+int run(const Options& options) {
+  config::LoadOptions load;
+  load.require_script_file = false;
+  const config::SceneConfig scene = value_or_throw(config::load_scene(options.scene_path, load));
+  const std::filesystem::path directory = std::filesystem::path(options.out_directory) / scene.name;
+  std::filesystem::create_directories(directory);
+  nlohmann::json summary = {{"scene", options.scene_path},
+                            {"quick", options.quick},
+                            {"cost_options",
+                             {{"warmup_cycles", options.cost.warmup_cycles},
+                              {"repetitions", options.cost.repetitions},
+                              {"cycles_per_repetition", options.cost.cycles_per_repetition}}},
+                            {"models", nlohmann::json::array()}};
+  for (const config::SceneModelConfig& entry : scene.models) {
+    if (!options.only.empty() && entry.name != options.only) continue;
+    switch (entry.definition.kind) {
+      case config::ModelKind::modal_shell:
+        summary["models"].push_back(run_duct(options, entry.name, entry.definition, directory));
+        break;
+      case config::ModelKind::catheter:
+      case config::ModelKind::tet_tensor:
+        std::cout << "model '" << entry.name << "': no trade study for this kind yet\n";
+        break;
+    }
+  }
+  const auto summary_path = directory / "summary.json";
+  std::ofstream(summary_path) << summary.dump(2) << "\n";
+  std::cout << "tradeoff: results in " << directory.string() << " (summary.json, <model>.csv, "
+            << "<model>.png)\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"tradeoff: cost per cycle against error for the knobs of a scene's models"};
+  Options options;
+  app.add_option("--scene", options.scene_path, "scene file (TOML)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app.add_option("--out", options.out_directory, "output directory (a subdirectory per scene)")
+      ->capture_default_str();
+  app.add_option("--only", options.only, "study only the model of this name");
+  app.add_flag("--quick", options.quick,
+               "fewer configurations and cycles (a smoke test; the numbers are not for docs)");
+  app.add_option("--budgets", options.budgets_percent, "error budgets to recommend for, in %")
+      ->delimiter(',')
+      ->capture_default_str();
+  app.add_option("--reference-step-us", options.reference_step_us,
+                 "DNIOS reference time step (must divide every configuration's step)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--warmup", options.cost.warmup_cycles, "untimed cycles before timing")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--repetitions", options.cost.repetitions, "timed repetitions")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--cycles", options.cost.cycles_per_repetition, "cycles per repetition")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  if (options.quick) {
+    options.cost.warmup_cycles = std::min(options.cost.warmup_cycles, 200);
+    options.cost.repetitions = std::min(options.cost.repetitions, 2);
+    options.cost.cycles_per_repetition = std::min(options.cost.cycles_per_repetition, 300);
+  }
+  try {
+    return run(options);
+  } catch (const std::exception& error) {
+    std::cerr << "tradeoff: " << error.what() << "\n";
+    return 1;
+  }
+}
