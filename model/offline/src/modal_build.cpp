@@ -150,7 +150,8 @@ model::ModalModelData FloatModalData::view() const {
 }
 
 core::Expected<void> write_modal_image(const ModalBuildSpec& spec, const ModalBuildResult& result,
-                                       const std::filesystem::path& path) {
+                                       const std::filesystem::path& path,
+                                       const std::optional<ErrorBudgetRecord>& budget) {
   const int node_count = static_cast<int>(spec.mesh.nodes.rows());
   ImageMetadataV1 metadata = make_metadata();
   metadata.source_mesh_hash = spec.mesh.source_hash;
@@ -169,6 +170,10 @@ core::Expected<void> write_modal_image(const ModalBuildSpec& spec, const ModalBu
   // Without static correction the contact response carries the modal truncation error; with
   // it the static response at surface nodes is exact, and what remains is dynamic.
   metadata.error_estimate = spec.static_correction ? 0.0 : result.truncation.max_local_relative;
+  if (budget) {
+    metadata.error_budget = budget->budget;
+    metadata.error_estimate = budget->measured_error;
+  }
   metadata.static_correction = spec.static_correction ? 1U : 0U;
   metadata.created_unix_s = static_cast<std::uint64_t>(std::time(nullptr));
   if (auto version = set_tool_version(metadata, "modelc 0.1.0"); !version) return version;

@@ -96,8 +96,10 @@ Eigen::Vector3d reference_force_at(const std::vector<Eigen::Vector3d>& forces,
 // The reference's force with its two-step ringing removed: average-acceleration Newmark has no
 // algorithmic damping, so where the displacement is imposed (and on the massless rotations)
 // the stiff, physically overdamped high modes of the full mesh keep a step-to-step alternation
-// (v_{n+1} = 2 Δu/Δt − v_n once Δu = 0) that can be larger than the force itself. The centred
-// [1 2 1]/4 average removes an alternating component exactly and, being centred, adds no lag;
+// (v_{n+1} = 2 Δu/Δt − v_n once Δu = 0, and then a_{n+1} = −a_n − a2 v_n: an alternation
+// (−1)^n (A + B n) growing linearly after any kink in the imposed motion) that can exceed the
+// force itself. The centred [1 2 1]/4 average removes (−1)^n (A + B n) exactly (the test
+// DniosImposed.ReachesTheTargetAndHoldsItWithTheStaticForce checks it) and, centred, adds no lag;
 // its smoothing error is O(Δt_ref²) on the physical signal. The runtime model is compared raw:
 // ringing it shows is an error the user would feel.
 // `forces` holds one sample beyond the scenario (dropped here) so the last kept sample is

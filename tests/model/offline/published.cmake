@@ -11,3 +11,8 @@ add_dependencies(modelc_published_test modelc)
 trainer_test(NAME model_offline_modal_build_test
              SOURCES ${CMAKE_CURRENT_LIST_DIR}/modal_build_test.cpp
              LIBS trainer::model_offline trainer::model LABELS unit)
+
+# The duct's speed/accuracy trade study and `--error-budget`'s choice (small tube).
+trainer_test(NAME model_offline_modal_tradeoff_test
+             SOURCES ${CMAKE_CURRENT_LIST_DIR}/modal_tradeoff_test.cpp
+             LIBS trainer::model_offline trainer::model LABELS unit)

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <numeric>
+#include <optional>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -18,6 +19,7 @@
 #include "model_spec.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/model_offline/modal_accuracy.hpp"
+#include "trainer/model_offline/modal_tradeoff.hpp"
 #include "trainer/model_offline/tensor_build.hpp"
 #include "trainer/model_offline/tet_mesh_generators.hpp"
 
@@ -159,7 +161,72 @@ struct BuildOptions {
   std::string scene_path;
   std::string only;
   std::string report_path;
+  std::optional<double> error_budget_percent;
 };
+
+// `--error-budget`: measure every mode count (5..160, with and without static correction) of the
+// definition at its element and time step against DNIOS over the trade study's scenarios, and
+// return the cheapest that meets the budget on the tuning scenarios and then on the held-out
+// ones (modal_tradeoff.hpp). The spec comes back with that mode count, correction and the
+// study's damping; `json` receives what was measured.
+offline::BudgetChoice choose_modes_for_budget(const std::string& name, offline::ModalBuildSpec& spec,
+                                              double budget_percent, nlohmann::json& json) {
+  const double budget = budget_percent / 100.0;
+  // The reference step must divide the definition's: a quarter of it.
+  const double reference_step_s = spec.time_step_s / 4.0;
+  auto study = value_or_throw(offline::DuctTradeStudy::create(
+      spec, offline::default_duct_scenarios(spec.mesh), reference_step_s));
+  std::vector<offline::ModalTradeConfig> candidates;
+  for (int modes : {5, 10, 20, 40, 80, 160}) {
+    for (bool correction : {false, true}) {
+      offline::ModalTradeConfig config;
+      config.modes = modes;
+      config.static_correction = correction;
+      config.element = spec.bending;
+      config.time_step_s = spec.time_step_s;
+      candidates.push_back(config);
+    }
+  }
+  offline::BudgetChoice choice =
+      value_or_throw(offline::choose_for_budget(*study, budget, candidates, {}));
+  std::cout << "model '" << name << "': error budget " << budget_percent
+            << " % (RMS force error, worst scenario, vs DNIOS at "
+            << fixed(reference_step_s * 1e6, 0) << " us): " << choice.candidates.size()
+            << " configurations measured\n";
+  for (const std::string& line : choice.log) std::cout << "  passed over: " << line << "\n";
+  const offline::ModalTradePoint& chosen = choice.chosen;
+  std::printf("  chosen: r = %d, static correction %s: %.0f ns per cycle (p99 %.0f), error "
+              "%.3f %% on the tuning scenarios, %.3f %% held out\n",
+              chosen.config.modes, chosen.config.static_correction ? "on" : "off",
+              chosen.cost.median_ns, chosen.cost.p99_ns, 100.0 * chosen.tuning_error,
+              100.0 * chosen.validation_error);
+  nlohmann::json candidates_json = nlohmann::json::array();
+  for (const offline::ModalTradePoint& point : choice.candidates) {
+    candidates_json.push_back({{"modes", point.config.modes},
+                               {"static_correction", point.config.static_correction},
+                               {"cost_median_ns", point.cost.median_ns},
+                               {"cost_p99_ns", point.cost.p99_ns},
+                               {"tuning_error", point.tuning_error},
+                               {"validation_error", point.validation_error}});
+  }
+  json = {{"budget", budget},
+          {"definition_mode_count", spec.mode_count},
+          {"definition_static_correction", spec.static_correction},
+          {"chosen_mode_count", chosen.config.modes},
+          {"chosen_static_correction", chosen.config.static_correction},
+          {"tuning_error", chosen.tuning_error},
+          {"validation_error", chosen.validation_error},
+          {"measured_error", chosen.worst_error},
+          {"cost_median_ns", chosen.cost.median_ns},
+          {"cost_p99_ns", chosen.cost.p99_ns},
+          {"reference_time_step_s", reference_step_s},
+          {"passed_over", choice.log},
+          {"candidates", candidates_json}};
+  spec.mode_count = chosen.config.modes;
+  spec.static_correction = chosen.config.static_correction;
+  spec.damping_override = study->damping();
+  return choice;
+}
 
 void run_build(const BuildOptions& options) {
   config::LoadOptions load;
@@ -184,10 +251,20 @@ void run_build(const BuildOptions& options) {
       report["models"].push_back(build_tensor_model(entry.name, definition));
       continue;
     }
-    const offline::ModalBuildSpec spec = value_or_throw(modal_spec_from(definition));
+    offline::ModalBuildSpec spec = value_or_throw(modal_spec_from(definition));
+    std::optional<offline::ErrorBudgetRecord> budget_record;
+    nlohmann::json budget_json;
+    if (options.error_budget_percent) {
+      const offline::BudgetChoice choice =
+          choose_modes_for_budget(entry.name, spec, *options.error_budget_percent, budget_json);
+      budget_record = offline::ErrorBudgetRecord{*options.error_budget_percent / 100.0,
+                                                 choice.chosen.worst_error};
+    }
     const offline::ModalBuildResult built = value_or_throw(offline::build_modal_model(spec));
     std::filesystem::create_directories(definition.image_path.parent_path());
-    if (auto written = offline::write_modal_image(spec, built, definition.image_path); !written) {
+    if (auto written =
+            offline::write_modal_image(spec, built, definition.image_path, budget_record);
+        !written) {
       throw std::runtime_error(written.error().message);
     }
     const auto image_bytes = std::filesystem::file_size(definition.image_path);
@@ -233,6 +310,7 @@ void run_build(const BuildOptions& options) {
           {"error_estimate", built.timings.error_estimate_s},
           {"total", built.timings.total_s}}},
     });
+    if (budget_record) report["models"].back()["error_budget"] = budget_json;
   }
   write_json(options.report_path, report);
 }
@@ -330,6 +408,11 @@ void add_build_command(CLI::App& app, int& exit_code) {
       ->check(CLI::ExistingFile);
   command->add_option("--only", options->only, "build only the model with this name");
   command->add_option("--report", options->report_path, "write a JSON report of the build");
+  command->add_option("--error-budget", options->error_budget_percent,
+                      "modal models: build the cheapest mode count (and static correction) whose "
+                      "force error against DNIOS is within PCT % on held-out contact scenarios; "
+                      "the budget and the measured error go in the image metadata")
+      ->check(CLI::Range(0.001, 100.0));
   command->callback([options, &exit_code] {
     run_build(*options);
     exit_code = 0;

@@ -72,9 +72,18 @@ class FloatModalData {
   std::uint32_t mode_count_ = 0;
 };
 
+// What an image built against an error budget records in its metadata (`error_budget`, and
+// `error_estimate` = the error measured for the chosen configuration, worst over every
+// scenario, tuning and held out; both fractions).
+struct ErrorBudgetRecord {
+  double budget = 0.0;
+  double measured_error = 0.0;
+};
+
 // Writes the image (format: docs/model-image.md) atomically to `path`.
 core::Expected<void> write_modal_image(const ModalBuildSpec& spec, const ModalBuildResult& result,
-                                       const std::filesystem::path& path);
+                                       const std::filesystem::path& path,
+                                       const std::optional<ErrorBudgetRecord>& budget = {});
 
 // Rayleigh coefficients giving damping ratio ζ exactly at ω_low and ω_high (ζ between them is
 // slightly lower, outside higher): α_M = 2ζ ω_l ω_h/(ω_l+ω_h), β_K = 2ζ/(ω_l+ω_h).
