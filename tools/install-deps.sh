@@ -19,6 +19,7 @@ packages=(
   libgtest-dev libgmock-dev   # unit tests
   libbenchmark-dev       # benchmarks
   rt-tests               # cyclictest, the timing reference
+  gnuplot-nox            # PNG plots of the tradeoff and jitter tools
   clang-format clang-tidy
 )
 

@@ -160,7 +160,7 @@ nlohmann::json run_duct(const Options& options, const std::string& name,
                        cost_per_ms_ns(points[i])});
   }
   const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
-      directory, name, "'" + name + "': force error vs DNIOS against cost per cycle", plotted);
+      directory, name, "'" + name + "': force error vs DNIOS against cost (Pareto front joined)", plotted);
   if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
 
   // Recommendation per budget, chosen on the tuning scenarios and checked on the held-out ones
