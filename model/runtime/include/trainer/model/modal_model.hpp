@@ -22,6 +22,10 @@
 // 7e-6..5e-5 in 1000 steps and 3e-5..5e-3 in 100,000 steps (one hour of use is 3.6 million
 // steps at 1 kHz); with the double state the runtime test measures 2.5e-8 after 100,000 steps.
 // The state is r values per array; the per-step work is the same count of operations.
+// What float storage itself costs (modal_model_double_test.cpp, 40 Hz undamped mode,
+// 100,000 steps, against the scheme's closed form): ω² and Δt rounded to float shift the
+// phase by 1.3e-3 of the amplitude (ModalModel) against 5e-11 with double data
+// (ModalModelDouble); one step of static correction differs by R's rounding, 5e-8 vs 1e-16.
 //
 // Units: SI. Mode shapes are M-orthonormal (kg^-1/2), modal coordinates kg^1/2·m, modal
 // damping α_i in 1/s (ẍ + α ẋ + ω² x = f), residual compliance m/N.
