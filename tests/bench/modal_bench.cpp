@@ -2,7 +2,9 @@
 // config/models/duct.toml: the runtime ModalModel's haptic cycle against r, with and without
 // static correction, the displacement-driven contact path against the contact count, the
 // graphics-rate full reconstruction, the full-system reference (DNIOS, dnios.hpp) on the same
-// mesh, and the offline precompute. docs/performance.md reports these numbers.
+// mesh, and the offline precompute. docs/performance.md reports these numbers. The haptic
+// cycle and the contact path also run on ModalModelDouble (…Double benchmarks): the same
+// build held in double, for the float-vs-double trade.
 //
 // Images: every model is built once per process (build_modal_model, static correction on, so
 // the image holds the residual compliance) and converted to the float32 arrays an image holds,
@@ -24,6 +26,7 @@
 #include <memory>
 #include <numbers>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -65,7 +68,17 @@ const core::Expected<offline::ModalBuildSpec>& default_spec() {
 struct DuctImage {
   offline::ModalBuildSpec spec;
   offline::ModalBuildResult build;
-  offline::FloatModalData data;
+  offline::FloatModalData data;          // as the image holds it
+  offline::DoubleModalData data_double;  // the same build unrounded, for ModalModelDouble
+
+  template <typename Scalar>
+  model::BasicModalModelData<Scalar> view() const {
+    if constexpr (std::is_same_v<Scalar, float>) {
+      return data.view();
+    } else {
+      return data_double.view();
+    }
+  }
 };
 
 // The default duct built with `mode_count` modes (static correction on), built on first use.
@@ -80,8 +93,9 @@ core::Expected<const DuctImage*> duct_image(std::int64_t mode_count) {
   auto build = offline::build_modal_model(spec);
   if (!build) return std::move(build).error();
   offline::FloatModalData data(spec, *build);
+  offline::DoubleModalData data_double(spec, *build);
   auto image = std::make_unique<const DuctImage>(
-      DuctImage{std::move(spec), std::move(*build), std::move(data)});
+      DuctImage{std::move(spec), std::move(*build), std::move(data), std::move(data_double)});
   const DuctImage* pointer = image.get();
   cache.emplace(mode_count, std::move(image));
   return pointer;
@@ -118,22 +132,29 @@ double load_profile(std::size_t step) {
   return 0.5 * (1.0 - std::cos(phase));
 }
 
-// One press of up to 0.1 N into the wall per load cycle, at `node`.
-std::vector<Eigen::Vector3f> force_history(const DuctImage& image, std::uint32_t node) {
+// One press of up to 0.1 N into the wall per load cycle, at `node`, in the model's precision.
+template <typename Scalar>
+std::vector<Eigen::Matrix<Scalar, 3, 1>> force_history(const DuctImage& image, std::uint32_t node) {
   constexpr double kPeakForceN = 0.1;
-  std::vector<Eigen::Vector3f> forces;
-  for (std::size_t step = 0; step < kLoadCycleSteps; ++step)
-    forces.push_back((kPeakForceN * load_profile(step) * inward_normal(image, node)).cast<float>());
+  std::vector<Eigen::Matrix<Scalar, 3, 1>> forces;
+  for (std::size_t step = 0; step < kLoadCycleSteps; ++step) {
+    forces.push_back(
+        (kPeakForceN * load_profile(step) * inward_normal(image, node)).template cast<Scalar>());
+  }
   return forces;
 }
 
-core::Expected<model::ModalModel> make_runtime(const DuctImage& image, core::Arena& arena,
-                                               std::int64_t active_modes, bool static_correction) {
-  model::ModalSettings settings;
-  settings.time_step_s = static_cast<float>(image.spec.time_step_s);
+// ModalModel (float, the image's data) or ModalModelDouble (the same build in double).
+template <typename Scalar>
+core::Expected<model::BasicModalModel<Scalar>> make_runtime(const DuctImage& image,
+                                                            core::Arena& arena,
+                                                            std::int64_t active_modes,
+                                                            bool static_correction) {
+  model::BasicModalSettings<Scalar> settings;
+  settings.time_step_s = static_cast<Scalar>(image.spec.time_step_s);
   settings.active_modes = static_cast<std::uint32_t>(active_modes);
   settings.static_correction = static_correction;
-  return model::ModalModel::create(image.data.view(), arena, settings);
+  return model::BasicModalModel<Scalar>::create(image.view<Scalar>(), arena, settings);
 }
 
 void set_size_counters(benchmark::State& state, const DuctImage& image) {
@@ -163,6 +184,7 @@ class AllocationCount {
 };
 
 // One haptic cycle of the duct: clear, one nodal force, step, read that node's displacement.
+template <typename Scalar>
 void modal_step_cycle(benchmark::State& state, std::int64_t active_modes, std::int64_t stored_modes,
                       bool static_correction) {
   auto image = duct_image(stored_modes);
@@ -175,13 +197,13 @@ void modal_step_cycle(benchmark::State& state, std::int64_t active_modes, std::i
     state.SkipWithError(arena.error().message.c_str());
     return;
   }
-  auto duct = make_runtime(**image, *arena, active_modes, static_correction);
+  auto duct = make_runtime<Scalar>(**image, *arena, active_modes, static_correction);
   if (!duct) {
     state.SkipWithError(duct.error().message.c_str());
     return;
   }
   const std::uint32_t node = surface_nodes_near_middle(**image).front();
-  const std::vector<Eigen::Vector3f> forces = force_history(**image, node);
+  const auto forces = force_history<Scalar>(**image, node);
   core::Status first_failure = core::Status::ok();
   std::size_t step = 0;
   double allocations = 0.0;
@@ -191,7 +213,7 @@ void modal_step_cycle(benchmark::State& state, std::int64_t active_modes, std::i
       duct->clear_forces();
       const core::Status added = duct->add_node_force(node, forces[step]);
       const core::Status stepped = duct->step();
-      model::Vec3 displacement_m = duct->displacement(node);
+      auto displacement_m = duct->displacement(node);
       benchmark::DoNotOptimize(displacement_m);
       if (!added && first_failure) first_failure = added;
       if (!stepped && first_failure) first_failure = stepped;
@@ -206,24 +228,32 @@ void modal_step_cycle(benchmark::State& state, std::int64_t active_modes, std::i
   set_size_counters(state, **image);
   state.counters["active_modes"] = static_cast<double>(duct->active_mode_count());
   state.counters["static_correction"] = static_correction ? 1.0 : 0.0;
+  state.counters["scalar_bytes"] = static_cast<double>(sizeof(Scalar));
   state.counters["heap_allocations_per_cycle"] =
       benchmark::Counter(allocations, benchmark::Counter::kAvgIterations);
 }
 
 // The image an appliance would load (stored = r) and r of a 160-mode image; static correction
 // on, as the default duct definition builds it.
-void BM_ModalStep(benchmark::State& state) {
-  modal_step_cycle(state, state.range(0), state.range(1), true);
-}
-BENCHMARK(BM_ModalStep)->ArgNames({"modes", "stored"})->Apply([](benchmark::internal::Benchmark* b) {
+void modal_step_arguments(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"modes", "stored"});
   for (const std::int64_t modes : kModeCounts) {
     b->Args({modes, modes});
     if (modes != kLargestImageModes) b->Args({modes, kLargestImageModes});
   }
-});
+}
+void BM_ModalStep(benchmark::State& state) {
+  modal_step_cycle<float>(state, state.range(0), state.range(1), true);
+}
+BENCHMARK(BM_ModalStep)->Apply(modal_step_arguments);
+// The same cycles on the same builds held in double (ModalModelDouble).
+void BM_ModalStepDouble(benchmark::State& state) {
+  modal_step_cycle<double>(state, state.range(0), state.range(1), true);
+}
+BENCHMARK(BM_ModalStepDouble)->Apply(modal_step_arguments);
 
 void BM_ModalStepStaticCorrection(benchmark::State& state) {
-  modal_step_cycle(state, state.range(0), state.range(1), state.range(2) != 0);
+  modal_step_cycle<float>(state, state.range(0), state.range(1), state.range(2) != 0);
 }
 BENCHMARK(BM_ModalStepStaticCorrection)
     ->ArgNames({"modes", "stored", "correction"})
@@ -240,7 +270,9 @@ BENCHMARK(BM_ModalStepStaticCorrection)
 // that put them at their imposed positions, step, read each node back. r = 40 of the default
 // 40-mode image with static correction (the contact compliance is then the exact static one
 // plus the modal dynamics). Indentation 0.1..0.5 mm along the inward normal over a load cycle.
-void BM_ContactRowProjection(benchmark::State& state) {
+template <typename Scalar>
+void contact_cycle(benchmark::State& state) {
+  using Vector3 = Eigen::Matrix<Scalar, 3, 1>;
   const auto contact_count = static_cast<std::size_t>(state.range(0));
   auto image = duct_image(kDefaultModes);
   if (!image) {
@@ -252,21 +284,21 @@ void BM_ContactRowProjection(benchmark::State& state) {
     state.SkipWithError(arena.error().message.c_str());
     return;
   }
-  auto duct = make_runtime(**image, *arena, kDefaultModes, true);
+  auto duct = make_runtime<Scalar>(**image, *arena, kDefaultModes, true);
   if (!duct) {
     state.SkipWithError(duct.error().message.c_str());
     return;
   }
   const std::vector<std::uint32_t> near = surface_nodes_near_middle(**image);
-  std::vector<std::vector<model::ImposedDisplacement>> targets(kLoadCycleSteps);
+  std::vector<std::vector<model::BasicImposedDisplacement<Scalar>>> targets(kLoadCycleSteps);
   for (std::size_t step = 0; step < kLoadCycleSteps; ++step) {
     const double depth_m = 1e-4 + 4e-4 * load_profile(step);
     for (std::size_t k = 0; k < contact_count; ++k) {
       targets[step].push_back(
-          {near[k], (depth_m * inward_normal(**image, near[k])).cast<float>()});
+          {near[k], (depth_m * inward_normal(**image, near[k])).template cast<Scalar>()});
     }
   }
-  std::vector<model::Vec3> forces_n(contact_count, model::Vec3::Zero());
+  std::vector<Vector3> forces_n(contact_count, Vector3::Zero());
   core::Status first_failure = core::Status::ok();
   std::size_t step = 0;
   double allocations = 0.0;
@@ -276,8 +308,8 @@ void BM_ContactRowProjection(benchmark::State& state) {
       duct->clear_forces();
       const core::Status solved = duct->solve_imposed(targets[step], forces_n);
       const core::Status stepped = duct->step();
-      for (const model::ImposedDisplacement& target : targets[step]) {
-        model::Vec3 displacement_m = duct->displacement(target.node);
+      for (const auto& target : targets[step]) {
+        Vector3 displacement_m = duct->displacement(target.node);
         benchmark::DoNotOptimize(displacement_m);
       }
       benchmark::DoNotOptimize(forces_n.data());
@@ -293,9 +325,9 @@ void BM_ContactRowProjection(benchmark::State& state) {
     return;
   }
   // The solved displacement must be reached: a wrong solve timed fast would mean nothing.
-  const model::ImposedDisplacement& last = targets[step == 0 ? kLoadCycleSteps - 1 : step - 1][0];
+  const auto& last = targets[step == 0 ? kLoadCycleSteps - 1 : step - 1][0];
   const double reached_error_m =
-      (duct->displacement(last.node) - last.displacement_m).cast<double>().norm();
+      (duct->displacement(last.node) - last.displacement_m).template cast<double>().norm();
   if (!(reached_error_m < 1e-7)) {
     state.SkipWithError("contact node missed its imposed displacement by more than 0.1 µm");
     return;
@@ -303,10 +335,18 @@ void BM_ContactRowProjection(benchmark::State& state) {
   set_size_counters(state, **image);
   state.counters["active_modes"] = static_cast<double>(duct->active_mode_count());
   state.counters["contacts"] = static_cast<double>(contact_count);
+  state.counters["scalar_bytes"] = static_cast<double>(sizeof(Scalar));
   state.counters["heap_allocations_per_cycle"] =
       benchmark::Counter(allocations, benchmark::Counter::kAvgIterations);
 }
+void BM_ContactRowProjection(benchmark::State& state) {
+  contact_cycle<float>(state);
+}
 BENCHMARK(BM_ContactRowProjection)->ArgName("contacts")->Arg(1)->Arg(2)->Arg(4)->Arg(8);
+void BM_ContactRowProjectionDouble(benchmark::State& state) {
+  contact_cycle<double>(state);
+}
+BENCHMARK(BM_ContactRowProjectionDouble)->ArgName("contacts")->Arg(1)->Arg(2)->Arg(4)->Arg(8);
 
 // Graphics-rate field: every node's displacement into a 3n float buffer, with the static
 // correction of the last step's load (the duct after a few steps of one nodal force).
@@ -322,13 +362,13 @@ void BM_FullReconstruction(benchmark::State& state) {
     state.SkipWithError(arena.error().message.c_str());
     return;
   }
-  auto duct = make_runtime(**image, *arena, active_modes, true);
+  auto duct = make_runtime<float>(**image, *arena, active_modes, true);
   if (!duct) {
     state.SkipWithError(duct.error().message.c_str());
     return;
   }
   const std::uint32_t node = surface_nodes_near_middle(**image).front();
-  const std::vector<Eigen::Vector3f> forces = force_history(**image, node);
+  const std::vector<Eigen::Vector3f> forces = force_history<float>(**image, node);
   for (std::size_t step = 0; step < kLoadCycleSteps / 4; ++step) {
     duct->clear_forces();
     if (!duct->add_node_force(node, forces[step]) || !duct->step()) {
@@ -390,7 +430,7 @@ void BM_DniosStep(benchmark::State& state) {
     return;
   }
   const std::uint32_t node = surface_nodes_near_middle(**image).front();
-  const std::vector<Eigen::Vector3f> forces = force_history(**image, node);
+  const std::vector<Eigen::Vector3f> forces = force_history<float>(**image, node);
   std::size_t step = 0;
   bool refused = false;
   double allocations = 0.0;

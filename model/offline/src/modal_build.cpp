@@ -106,38 +106,40 @@ core::Expected<ModalBuildResult> build_modal_model(const ModalBuildSpec& spec) {
   return result;
 }
 
-FloatModalData::FloatModalData(const ModalBuildSpec& spec, const ModalBuildResult& build)
+template <typename Scalar>
+ModalDataCopy<Scalar>::ModalDataCopy(const ModalBuildSpec& spec, const ModalBuildResult& build)
     : node_count_(static_cast<std::uint32_t>(spec.mesh.nodes.rows())),
       mode_count_(static_cast<std::uint32_t>(build.basis.mode_count())) {
   // Row-major copies, exactly as ImageWriter lays the sections out.
   for (Eigen::Index node = 0; node < spec.mesh.nodes.rows(); ++node) {
     for (int axis = 0; axis < 3; ++axis) {
-      rest_positions_.push_back(static_cast<float>(spec.mesh.nodes(node, axis)));
+      rest_positions_.push_back(static_cast<Scalar>(spec.mesh.nodes(node, axis)));
     }
   }
   const Eigen::MatrixXd& shapes = build.basis.node_shapes;
   for (Eigen::Index row = 0; row < shapes.rows(); ++row) {
     for (Eigen::Index col = 0; col < shapes.cols(); ++col) {
-      mode_shapes_.push_back(static_cast<float>(shapes(row, col)));
+      mode_shapes_.push_back(static_cast<Scalar>(shapes(row, col)));
     }
   }
   for (Eigen::Index i = 0; i < build.basis.omega_squared.size(); ++i) {
-    omega_squared_.push_back(static_cast<float>(build.basis.omega_squared(i)));
-    modal_damping_.push_back(static_cast<float>(build.modal_damping(i)));
+    omega_squared_.push_back(static_cast<Scalar>(build.basis.omega_squared(i)));
+    modal_damping_.push_back(static_cast<Scalar>(build.modal_damping(i)));
   }
   for (int node : build.surface_nodes) surface_nodes_.push_back(static_cast<std::uint32_t>(node));
   if (build.residual) {
     const Eigen::MatrixXd& compliance = build.residual->compliance;
     for (Eigen::Index row = 0; row < compliance.rows(); ++row) {
       for (Eigen::Index col = 0; col < compliance.cols(); ++col) {
-        residual_.push_back(static_cast<float>(compliance(row, col)));
+        residual_.push_back(static_cast<Scalar>(compliance(row, col)));
       }
     }
   }
 }
 
-model::ModalModelData FloatModalData::view() const {
-  model::ModalModelData data;
+template <typename Scalar>
+model::BasicModalModelData<Scalar> ModalDataCopy<Scalar>::view() const {
+  model::BasicModalModelData<Scalar> data;
   data.node_count = node_count_;
   data.mode_count = mode_count_;
   data.rest_positions = rest_positions_;
@@ -148,6 +150,9 @@ model::ModalModelData FloatModalData::view() const {
   data.residual_compliance = residual_;
   return data;
 }
+
+template class ModalDataCopy<float>;
+template class ModalDataCopy<double>;
 
 core::Expected<void> write_modal_image(const ModalBuildSpec& spec, const ModalBuildResult& result,
                                        const std::filesystem::path& path,

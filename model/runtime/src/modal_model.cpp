@@ -1,4 +1,5 @@
-// Runtime reduced-modal model: setup checks, Newmark per mode, contact solve.
+// Runtime reduced-modal model: setup checks, Newmark per mode, contact solve; instantiated for
+// float (model images) and double (offline precision measurements).
 #include "trainer/model/modal_model.hpp"
 
 #include <cmath>
@@ -11,18 +12,21 @@ namespace trainer::model {
 namespace {
 
 constexpr std::size_t kNotFound = static_cast<std::size_t>(-1);
-constexpr int kMaxContactRows = 3 * static_cast<int>(ModalModel::kMaxContacts);
+constexpr int kMaxContactRows = 3 * static_cast<int>(BasicModalModel<float>::kMaxContacts);
 // A contact compliance whose smallest LDLᵀ pivot is below this fraction of the largest is
-// treated as singular: its data are float (relative error ~1e-7), so below ~1e-8 the solved
-// forces would be rounding noise (e.g. a fixed node, or nearly dependent shape rows).
+// treated as singular: with float data (relative error ~1e-7), below ~1e-8 the solved forces
+// would be rounding noise (e.g. a fixed node, or nearly dependent shape rows). The double model
+// keeps the same bound so that both precisions accept and refuse the same contact sets (a
+// comparison of the two then times and measures the same work).
 constexpr double kMinPivotRatio = 1e-8;
 
 using ContactMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
                                     kMaxContactRows, kMaxContactRows>;
 using ContactVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxContactRows, 1>;
 
-bool all_finite(std::span<const float> values) noexcept {
-  for (const float value : values) {
+template <typename Scalar>
+bool all_finite(std::span<const Scalar> values) noexcept {
+  for (const Scalar value : values) {
     if (!std::isfinite(value)) return false;
   }
   return true;
@@ -45,8 +49,10 @@ core::Expected<std::span<T>> carve(core::Arena& arena, std::size_t count, std::s
 
 }  // namespace
 
-core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::Arena& arena,
-                                              const ModalSettings& settings) {
+template <typename Scalar>
+core::Expected<BasicModalModel<Scalar>> BasicModalModel<Scalar>::create(
+    const BasicModalModelData<Scalar>& data, core::Arena& arena,
+    const BasicModalSettings<Scalar>& settings) {
   const std::size_t n = data.node_count;
   const std::size_t r = data.mode_count;
   if (n == 0 || r == 0) {
@@ -76,12 +82,12 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
         "modal model: rest_positions, mode_shapes or residual_compliance has a non-finite value");
   }
   for (std::size_t i = 0; i < r; ++i) {
-    if (!(data.omega_squared[i] > 0.0F) || !std::isfinite(data.omega_squared[i])) {
+    if (!(data.omega_squared[i] > Scalar{0}) || !std::isfinite(data.omega_squared[i])) {
       return core::make_error("modal model: omega_squared[" + std::to_string(i) +
                               "] = " + std::to_string(data.omega_squared[i]) +
                               " rad²/s², expected finite > 0");
     }
-    if (!(data.modal_damping[i] >= 0.0F) || !std::isfinite(data.modal_damping[i])) {
+    if (!(data.modal_damping[i] >= Scalar{0}) || !std::isfinite(data.modal_damping[i])) {
       return core::make_error("modal model: modal_damping[" + std::to_string(i) + "] = " +
                               std::to_string(data.modal_damping[i]) + " 1/s, expected finite ≥ 0");
     }
@@ -98,7 +104,7 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
         std::to_string(s) + " surface nodes, " + std::to_string(data.residual_compliance.size()) +
         " compliance values)");
   }
-  if (!(settings.time_step_s > 0.0F) || !std::isfinite(settings.time_step_s)) {
+  if (!(settings.time_step_s > Scalar{0}) || !std::isfinite(settings.time_step_s)) {
     return core::make_error("modal model: time_step_s = " + std::to_string(settings.time_step_s) +
                             ", expected finite > 0");
   }
@@ -107,7 +113,7 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
                             ", expected 0 (all) .. " + std::to_string(r) + " stored modes");
   }
 
-  ModalModel model;
+  BasicModalModel model;
   model.node_count_ = data.node_count;
   model.stored_modes_ = data.mode_count;
   model.active_modes_ = settings.active_modes == 0 ? data.mode_count : settings.active_modes;
@@ -167,12 +173,12 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
       model.inactive_inverse_omega_squared_[j] = 1.0 / omega_squared;
     }
   }
-  auto modes_float = carve<float>(arena, active, "modal model reconstruct scratch");
-  if (!modes_float) return std::move(modes_float).error();
-  model.reconstruct_modes_ = modes_float.value();
+  auto modes_scalar = carve<Scalar>(arena, active, "modal model reconstruct scratch");
+  if (!modes_scalar) return std::move(modes_scalar).error();
+  model.reconstruct_modes_ = modes_scalar.value();
   if (model.static_correction_) {
-    auto residual = carve<float>(arena, 3 * static_cast<std::size_t>(model.surface_count_),
-                                 "modal model reconstruct residual scratch");
+    auto residual = carve<Scalar>(arena, 3 * static_cast<std::size_t>(model.surface_count_),
+                                  "modal model reconstruct residual scratch");
     if (!residual) return std::move(residual).error();
     model.reconstruct_residual_ = residual.value();
   }
@@ -196,7 +202,8 @@ core::Expected<ModalModel> ModalModel::create(const ModalModelData& data, core::
   return model;
 }
 
-void ModalModel::reset() noexcept {
+template <typename Scalar>
+void BasicModalModel<Scalar>::reset() noexcept {
   for (std::size_t i = 0; i < active_modes_; ++i) {
     x_[i] = 0.0;
     v_[i] = 0.0;
@@ -206,18 +213,23 @@ void ModalModel::reset() noexcept {
   stepped_count_ = 0;
 }
 
-std::size_t ModalModel::find_pending(std::uint32_t node) const noexcept {
+template <typename Scalar>
+std::size_t BasicModalModel<Scalar>::find_pending(std::uint32_t node) const noexcept {
   for (std::size_t l = 0; l < pending_count_; ++l) {
     if (pending_loads_[l].node == node) return l;
   }
   return kNotFound;
 }
 
-core::Status ModalModel::add_node_force(std::uint32_t node, const Vec3& force_n) noexcept {
-  return add_force(node, force_n.cast<double>());
+template <typename Scalar>
+core::Status BasicModalModel<Scalar>::add_node_force(std::uint32_t node,
+                                                     const Vector3& force_n) noexcept {
+  return add_force(node, force_n.template cast<double>());
 }
 
-core::Status ModalModel::add_force(std::uint32_t node, const Eigen::Vector3d& force_n) noexcept {
+template <typename Scalar>
+core::Status BasicModalModel<Scalar>::add_force(std::uint32_t node,
+                                                const Eigen::Vector3d& force_n) noexcept {
   if (node >= node_count_) return {core::StatusCode::invalid_argument, "modal model: unknown node"};
   if (!force_n.allFinite())
     return {core::StatusCode::numeric_error, "modal model: non-finite force"};
@@ -238,11 +250,13 @@ core::Status ModalModel::add_force(std::uint32_t node, const Eigen::Vector3d& fo
   return core::Status::ok();
 }
 
-void ModalModel::clear_forces() noexcept {
+template <typename Scalar>
+void BasicModalModel<Scalar>::clear_forces() noexcept {
   pending_count_ = 0;
 }
 
-void ModalModel::project_pending_forces() noexcept {
+template <typename Scalar>
+void BasicModalModel<Scalar>::project_pending_forces() noexcept {
   const std::size_t r = active_modes_;
   for (std::size_t i = 0; i < r; ++i) modal_force_[i] = 0.0;
   for (std::size_t l = 0; l < pending_count_; ++l) {
@@ -250,7 +264,7 @@ void ModalModel::project_pending_forces() noexcept {
     for (int axis = 0; axis < 3; ++axis) {
       const double force = load.force_n[axis];
       if (force == 0.0) continue;
-      const float* row = shape_row(load.node, axis);
+      const Scalar* row = shape_row(load.node, axis);
       for (std::size_t i = 0; i < r; ++i) modal_force_[i] += static_cast<double>(row[i]) * force;
     }
   }
@@ -264,7 +278,8 @@ void ModalModel::project_pending_forces() noexcept {
 // i.e. k̂ = ω² + a0 with a0 = (4 + 2αΔt)/Δt², a2 = 4/Δt + α, f̂ = f⁺ + a0 x + a2 v + a and
 // x⁺ = f̂/k̂ — the corrected Appendix B of METHODS.md §1 (the runtime test checks this
 // scheme's period elongation and energy conservation against the closed forms).
-core::Status ModalModel::step() noexcept {
+template <typename Scalar>
+core::Status BasicModalModel<Scalar>::step() noexcept {
   project_pending_forces();
   const double dt = time_step_s_;
   const double four_over_dt_squared = 4.0 / (dt * dt);
@@ -290,21 +305,23 @@ core::Status ModalModel::step() noexcept {
   return core::Status::ok();
 }
 
-const float* ModalModel::compliance_block(std::int32_t row_surface,
-                                          std::int32_t column_surface) const noexcept {
+template <typename Scalar>
+const Scalar* BasicModalModel<Scalar>::compliance_block(
+    std::int32_t row_surface, std::int32_t column_surface) const noexcept {
   const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
   return residual_compliance_.data() + 3 * static_cast<std::size_t>(row_surface) * stride +
          3 * static_cast<std::size_t>(column_surface);
 }
 
-double ModalModel::residual_entry(std::uint32_t node_k, int axis_k, std::uint32_t node_l,
-                                  int axis_l) const noexcept {
+template <typename Scalar>
+double BasicModalModel<Scalar>::residual_entry(std::uint32_t node_k, int axis_k,
+                                               std::uint32_t node_l, int axis_l) const noexcept {
   const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
   double value = static_cast<double>(
       compliance_block(surface_index_[node_k], surface_index_[node_l])
           [static_cast<std::size_t>(axis_k) * stride + static_cast<std::size_t>(axis_l)]);
-  const float* shape_k = shape_row(node_k, axis_k);
-  const float* shape_l = shape_row(node_l, axis_l);
+  const Scalar* shape_k = shape_row(node_k, axis_k);
+  const Scalar* shape_l = shape_row(node_l, axis_l);
   for (std::size_t j = 0; j < inactive_inverse_omega_squared_.size(); ++j) {
     const std::size_t i = active_modes_ + j;
     value += static_cast<double>(shape_k[i]) * static_cast<double>(shape_l[i]) *
@@ -313,8 +330,9 @@ double ModalModel::residual_entry(std::uint32_t node_k, int axis_k, std::uint32_
   return value;
 }
 
-Eigen::Vector3d ModalModel::static_response(std::uint32_t node,
-                                            std::span<const NodeLoad> loads) const noexcept {
+template <typename Scalar>
+Eigen::Vector3d BasicModalModel<Scalar>::static_response(
+    std::uint32_t node, std::span<const NodeLoad> loads) const noexcept {
   Eigen::Vector3d response = Eigen::Vector3d::Zero();
   if (!static_correction_ || surface_index_[node] < 0) return response;
   for (const NodeLoad& load : loads) {
@@ -328,27 +346,33 @@ Eigen::Vector3d ModalModel::static_response(std::uint32_t node,
   return response;
 }
 
-Vec3 ModalModel::displacement(std::uint32_t node) const noexcept {
-  if (node >= node_count_) return Vec3::Zero();
+template <typename Scalar>
+typename BasicModalModel<Scalar>::Vector3 BasicModalModel<Scalar>::displacement(
+    std::uint32_t node) const noexcept {
+  if (node >= node_count_) return Vector3::Zero();
   Eigen::Vector3d result =
       static_response(node, {stepped_loads_.data(), stepped_count_});
   for (int axis = 0; axis < 3; ++axis) {
-    const float* row = shape_row(node, axis);
+    const Scalar* row = shape_row(node, axis);
     double sum = 0.0;
     for (std::size_t i = 0; i < active_modes_; ++i) sum += static_cast<double>(row[i]) * x_[i];
     result[axis] += sum;
   }
-  return result.cast<float>();
+  return result.cast<Scalar>();
 }
 
-Vec3 ModalModel::rest_position(std::uint32_t node) const noexcept {
-  if (node >= node_count_) return Vec3::Zero();
+template <typename Scalar>
+typename BasicModalModel<Scalar>::Vector3 BasicModalModel<Scalar>::rest_position(
+    std::uint32_t node) const noexcept {
+  if (node >= node_count_) return Vector3::Zero();
   const std::size_t base = 3 * static_cast<std::size_t>(node);
   return {rest_positions_[base], rest_positions_[base + 1], rest_positions_[base + 2]};
 }
 
-core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targets,
-                                       std::span<Vec3> forces_out) noexcept {
+template <typename Scalar>
+core::Status BasicModalModel<Scalar>::solve_imposed(
+    std::span<const BasicImposedDisplacement<Scalar>> targets,
+    std::span<Vector3> forces_out) noexcept {
   const std::size_t c = targets.size();
   if (c == 0) return core::Status::ok();
   if (c > kMaxContacts) {
@@ -399,7 +423,7 @@ core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targ
     const Eigen::Vector3d static_part = static_response(node_k, pending);
     for (int axis_k = 0; axis_k < 3; ++axis_k) {
       const Eigen::Index row = static_cast<Eigen::Index>(3 * k) + axis_k;
-      const float* shape_k = shape_row(node_k, axis_k);
+      const Scalar* shape_k = shape_row(node_k, axis_k);
       double free_response = 0.0;
       for (std::size_t i = 0; i < active_modes_; ++i) {
         free_response += static_cast<double>(shape_k[i]) * predicted_[i];
@@ -411,7 +435,7 @@ core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targ
         const std::uint32_t node_l = targets[l].node;
         for (int axis_l = (l == k ? axis_k : 0); axis_l < 3; ++axis_l) {
           const Eigen::Index column = static_cast<Eigen::Index>(3 * l) + axis_l;
-          const float* shape_l = shape_row(node_l, axis_l);
+          const Scalar* shape_l = shape_row(node_l, axis_l);
           double value = 0.0;
           for (std::size_t i = 0; i < active_modes_; ++i) {
             value += static_cast<double>(shape_k[i]) * static_cast<double>(shape_l[i]) *
@@ -432,22 +456,24 @@ core::Status ModalModel::solve_imposed(std::span<const ImposedDisplacement> targ
             "modal model: contact compliance singular (fixed node or dependent contacts)"};
   }
   const ContactVector forces = factorisation.solve(rhs);
-  constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+  // Forces are returned as Scalar: one that would overflow it is refused like a non-finite one.
+  constexpr double kScalarMax = static_cast<double>(std::numeric_limits<Scalar>::max());
   for (Eigen::Index j = 0; j < rows; ++j) {
-    if (!std::isfinite(forces[j]) || std::abs(forces[j]) > kFloatMax) {
+    if (!std::isfinite(forces[j]) || std::abs(forces[j]) > kScalarMax) {
       return {core::StatusCode::numeric_error, "modal model: non-finite contact force"};
     }
   }
   for (std::size_t k = 0; k < c; ++k) {
     const Eigen::Vector3d force = forces.segment<3>(static_cast<Eigen::Index>(3 * k));
-    forces_out[k] = force.cast<float>();
+    forces_out[k] = force.cast<Scalar>();
     // Cannot fail: node, finiteness, surface membership and capacity were checked above.
     (void)add_force(targets[k].node, force);
   }
   return core::Status::ok();
 }
 
-core::Status ModalModel::reconstruct(std::span<float> out_3n) const noexcept {
+template <typename Scalar>
+core::Status BasicModalModel<Scalar>::reconstruct(std::span<Scalar> out_3n) const noexcept {
   if (out_3n.size() < 3 * static_cast<std::size_t>(node_count_)) {
     return {core::StatusCode::invalid_argument, "modal model: reconstruct output shorter than 3n"};
   }
@@ -456,34 +482,36 @@ core::Status ModalModel::reconstruct(std::span<float> out_3n) const noexcept {
     // The inactive modes' static flexibility couples every loaded node with every node through
     // the stored shapes: rare (a model run below its stored mode count), done per node.
     for (std::uint32_t node = 0; node < node_count_; ++node) {
-      const Vec3 u = displacement(node);
+      const Vector3 u = displacement(node);
       for (int axis = 0; axis < 3; ++axis)
         out_3n[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(axis)] = u[axis];
     }
     return core::Status::ok();
   }
-  using RowMajorMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using RowMajorMatrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
   const Eigen::Map<const RowMajorMatrix> shapes(mode_shapes_.data(), static_cast<Eigen::Index>(rows),
                                                 static_cast<Eigen::Index>(stored_modes_));
-  for (std::size_t i = 0; i < active_modes_; ++i) reconstruct_modes_[i] = static_cast<float>(x_[i]);
-  const Eigen::Map<const Eigen::VectorXf> modes(reconstruct_modes_.data(),
-                                                static_cast<Eigen::Index>(active_modes_));
-  Eigen::Map<Eigen::VectorXf> out(out_3n.data(), static_cast<Eigen::Index>(rows));
+  for (std::size_t i = 0; i < active_modes_; ++i)
+    reconstruct_modes_[i] = static_cast<Scalar>(x_[i]);
+  const Eigen::Map<const Vector> modes(reconstruct_modes_.data(),
+                                       static_cast<Eigen::Index>(active_modes_));
+  Eigen::Map<Vector> out(out_3n.data(), static_cast<Eigen::Index>(rows));
   out.noalias() = shapes.leftCols(static_cast<Eigen::Index>(active_modes_)) * modes;
   if (!static_correction_ || stepped_count_ == 0) return core::Status::ok();
   // Σ_l R_{k,l} F_l for every surface node k: R symmetric, so column block l is the transpose
   // of row block l — three contiguous rows of length 3s per loaded node.
   const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
-  Eigen::Map<Eigen::VectorXf> residual(reconstruct_residual_.data(), static_cast<Eigen::Index>(stride));
+  Eigen::Map<Vector> residual(reconstruct_residual_.data(), static_cast<Eigen::Index>(stride));
   residual.setZero();
   for (std::size_t k = 0; k < stepped_count_; ++k) {
     const NodeLoad& load = stepped_loads_[k];
     if (load.surface_index < 0) continue;
     for (std::size_t axis = 0; axis < 3; ++axis) {
-      const float* row = residual_compliance_.data() +
-                         (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride;
-      residual += static_cast<float>(load.force_n[axis]) *
-                  Eigen::Map<const Eigen::VectorXf>(row, static_cast<Eigen::Index>(stride));
+      const Scalar* row = residual_compliance_.data() +
+                          (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride;
+      residual += static_cast<Scalar>(load.force_n[axis]) *
+                  Eigen::Map<const Vector>(row, static_cast<Eigen::Index>(stride));
     }
   }
   for (std::uint32_t node = 0; node < node_count_; ++node) {
@@ -496,5 +524,8 @@ core::Status ModalModel::reconstruct(std::span<float> out_3n) const noexcept {
   }
   return core::Status::ok();
 }
+
+template class BasicModalModel<float>;
+template class BasicModalModel<double>;
 
 }  // namespace trainer::model

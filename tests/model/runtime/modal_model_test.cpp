@@ -14,80 +14,14 @@
 
 #include <gtest/gtest.h>
 
+#include "synthetic_modal_model.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
 
 namespace trainer::model {
 namespace {
 
-// Owns the arrays a ModalModelData views (as a loaded model image would).
-struct SyntheticModel {
-  std::uint32_t node_count = 0;
-  std::uint32_t mode_count = 0;
-  std::vector<float> rest_positions;
-  std::vector<float> mode_shapes;  // 3n × r row-major
-  std::vector<float> omega_squared;
-  std::vector<float> modal_damping;
-  std::vector<std::uint32_t> surface_nodes;
-  std::vector<float> residual_compliance;
-
-  ModalModelData data() const {
-    return {node_count,    mode_count,    rest_positions, mode_shapes,
-            omega_squared, modal_damping, surface_nodes,  residual_compliance};
-  }
-  float shape(std::uint32_t node, int axis, std::uint32_t mode) const {
-    return mode_shapes[(node * 3 + static_cast<std::uint32_t>(axis)) * mode_count + mode];
-  }
-};
-
-// One node, one mode moving along x with unit modal mass: the single-dof oscillator.
-SyntheticModel single_dof(float omega_rad_per_s, float alpha_per_s) {
-  SyntheticModel model;
-  model.node_count = 1;
-  model.mode_count = 1;
-  model.rest_positions = {0.0F, 0.0F, 0.0F};
-  model.mode_shapes = {1.0F, 0.0F, 0.0F};
-  model.omega_squared = {omega_rad_per_s * omega_rad_per_s};
-  model.modal_damping = {alpha_per_s};
-  return model;
-}
-
-// Random shapes (entries ~N(0, 1)), ω from 2π·5 Hz upwards, damping ratios 2–10 %, and — if
-// asked — an SPD residual compliance (A Aᵀ/s + small diagonal) over every node.
-SyntheticModel random_model(std::uint32_t nodes, std::uint32_t modes, bool with_residual,
-                            unsigned seed) {
-  std::mt19937 random(seed);
-  std::normal_distribution<float> normal(0.0F, 1.0F);
-  std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
-  SyntheticModel model;
-  model.node_count = nodes;
-  model.mode_count = modes;
-  for (std::uint32_t i = 0; i < 3 * nodes; ++i)
-    model.rest_positions.push_back(0.01F * normal(random));
-  for (std::uint32_t i = 0; i < 3 * nodes * modes; ++i) model.mode_shapes.push_back(normal(random));
-  float omega = 2.0F * std::numbers::pi_v<float> * 5.0F;
-  for (std::uint32_t i = 0; i < modes; ++i) {
-    omega *= 1.0F + 0.5F * uniform(random);
-    model.omega_squared.push_back(omega * omega);
-    model.modal_damping.push_back(2.0F * (0.02F + 0.08F * uniform(random)) * omega);
-  }
-  for (std::uint32_t node = 0; node < nodes; ++node) model.surface_nodes.push_back(node);
-  if (with_residual) {
-    const std::uint32_t rows = 3 * nodes;
-    std::vector<double> a(rows * rows);
-    for (auto& value : a) value = static_cast<double>(normal(random));
-    model.residual_compliance.resize(rows * rows);
-    for (std::uint32_t i = 0; i < rows; ++i) {
-      for (std::uint32_t j = 0; j < rows; ++j) {
-        double sum = i == j ? 0.1 : 0.0;
-        for (std::uint32_t k = 0; k < rows; ++k) sum += a[i * rows + k] * a[j * rows + k];
-        // Scale to ~1e-4 m/N, comparable to the modal compliance 1/ω² of these modes.
-        model.residual_compliance[i * rows + j] = static_cast<float>(1e-4 * sum / rows);
-      }
-    }
-  }
-  return model;
-}
+using SyntheticModel = SyntheticModalModel<float>;
 
 core::Arena make_arena() {
   auto arena = core::Arena::create(1 << 20);
@@ -225,39 +159,6 @@ TEST(ModalNewmark, StepResponseSettlesAtStaticDeflection) {
     EXPECT_NEAR(model.displacement(4)[axis], expected, 1e-6 * std::abs(expected) + 1e-12);
   }
 }
-
-// Independent double-precision NIRMS (same equations, written out again) for the float
-// model to be compared against.
-struct DoubleReference {
-  const SyntheticModel& model;
-  double dt;
-  std::vector<double> x, v, a;
-  DoubleReference(const SyntheticModel& m, double time_step_s)
-      : model(m), dt(time_step_s), x(m.mode_count), v(m.mode_count), a(m.mode_count) {}
-  void step(const std::vector<std::pair<std::uint32_t, Vec3>>& loads) {
-    for (std::uint32_t i = 0; i < model.mode_count; ++i) {
-      double f = 0.0;
-      for (const auto& [node, force] : loads) {
-        for (int b = 0; b < 3; ++b) f += double{model.shape(node, b, i)} * double{force[b]};
-      }
-      const double alpha = model.modal_damping[i];
-      const double a0 = (4.0 + 2.0 * alpha * dt) / (dt * dt);
-      const double a2 = 4.0 / dt + alpha;
-      const double next =
-          (f + a0 * x[i] + a2 * v[i] + a[i]) / (double{model.omega_squared[i]} + a0);
-      const double next_a = 4.0 / (dt * dt) * (next - x[i]) - 4.0 / dt * v[i] - a[i];
-      v[i] += dt / 2.0 * (a[i] + next_a);
-      a[i] = next_a;
-      x[i] = next;
-    }
-  }
-  double displacement(std::uint32_t node, int axis) const {
-    double sum = 0.0;
-    for (std::uint32_t i = 0; i < model.mode_count; ++i)
-      sum += double{model.shape(node, axis, i)} * x[i];
-    return sum;
-  }
-};
 
 TEST(ModalModel, FloatModelMatchesDoubleIntegrationOfALoadHistory) {
   const SyntheticModel synthetic = random_model(30, 12, false, 11);

@@ -4,6 +4,7 @@
 // calls this for every modal model a scene names; tests and benchmarks call it directly.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -58,19 +59,28 @@ struct ModalBuildResult {
 
 core::Expected<ModalBuildResult> build_modal_model(const ModalBuildSpec& spec);
 
-// Float32 copies of what the image would hold, viewed as the runtime model's data: for
+// Copies of what the image would hold, in `Scalar`, viewed as the runtime model's data: for
 // measuring the runtime model on a build without writing and reading an image file.
-class FloatModalData {
+// FloatModalData rounds to float32 exactly as the image writer does (what the appliance runs);
+// DoubleModalData keeps the build's doubles, so the same build can run in either precision
+// (ModalModel and ModalModelDouble) and the difference is the runtime's precision alone.
+template <typename Scalar>
+class ModalDataCopy {
  public:
-  FloatModalData(const ModalBuildSpec& spec, const ModalBuildResult& build);
-  model::ModalModelData view() const;
+  ModalDataCopy(const ModalBuildSpec& spec, const ModalBuildResult& build);
+  model::BasicModalModelData<Scalar> view() const;
 
  private:
-  std::vector<float> rest_positions_, mode_shapes_, omega_squared_, modal_damping_, residual_;
+  std::vector<Scalar> rest_positions_, mode_shapes_, omega_squared_, modal_damping_, residual_;
   std::vector<std::uint32_t> surface_nodes_;
   std::uint32_t node_count_ = 0;
   std::uint32_t mode_count_ = 0;
 };
+
+extern template class ModalDataCopy<float>;
+extern template class ModalDataCopy<double>;
+using FloatModalData = ModalDataCopy<float>;
+using DoubleModalData = ModalDataCopy<double>;
 
 // What an image built against an error budget records in its metadata (`error_budget`, and
 // `error_estimate` = the error measured for the chosen configuration, worst over every

@@ -11,13 +11,21 @@
 // thread owns the model (the haptic thread): reconstruct() reads the live state, so another
 // thread wanting the field rebuilds it from published modal coordinates (DESIGN.md).
 //
-// Precision: mode shapes and residual compliance are float32 (the image) and the interface
-// takes and returns float; the modal state (x, v, a per mode), the Newmark constants and the
+// Precision: `Scalar` is the precision of the stored data (rest positions, mode shapes, ω²,
+// damping, residual compliance) and of the interface (time step, forces, imposed and returned
+// displacements, the reconstructed field). ModalModel (float) is what the appliance runs on a
+// float32 model image; ModalModelDouble runs the same algorithms on double data (a build held
+// in memory, offline::DoubleModalData), so the speed/accuracy trade can measure what float32
+// storage costs. In both, the modal state (x, v, a per mode), the Newmark constants and the
 // accumulated nodal forces are double, and every sum is accumulated in double. Measured at
 // Δt = 1 ms, 10 Hz..1.6 kHz: with a float state an undamped oscillator's amplitude drifts by
 // 7e-6..5e-5 in 1000 steps and 3e-5..5e-3 in 100,000 steps (one hour of use is 3.6 million
 // steps at 1 kHz); with the double state the runtime test measures 2.5e-8 after 100,000 steps.
 // The state is r values per array; the per-step work is the same count of operations.
+// What float storage itself costs (modal_model_double_test.cpp, 40 Hz undamped mode,
+// 100,000 steps, against the scheme's closed form): ω² and Δt rounded to float shift the
+// phase by 1.3e-3 of the amplitude (ModalModel) against 5e-11 with double data
+// (ModalModelDouble); one step of static correction differs by R's rounding, 5e-8 vs 1e-16.
 //
 // Units: SI. Mode shapes are M-orthonormal (kg^-1/2), modal coordinates kg^1/2·m, modal
 // damping α_i in 1/s (ẍ + α ẋ + ω² x = f), residual compliance m/N.
@@ -26,6 +34,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <type_traits>
 
 #include <Eigen/Core>
 
@@ -37,38 +46,50 @@ namespace trainer::model {
 
 using Vec3 = Eigen::Vector3f;
 
-// Views of the stored model; the lead maps the model image's sections onto it.
-struct ModalModelData {
+// Views of the stored model; the lead maps the model image's sections onto it (float), or
+// offline code a build held in memory (float or double).
+template <typename Scalar>
+struct BasicModalModelData {
   std::uint32_t node_count = 0;
   std::uint32_t mode_count = 0;                  // stored modes r
-  std::span<const float> rest_positions;         // 3n, m
-  std::span<const float> mode_shapes;            // 3n × r row-major: row node*3 + axis
-  std::span<const float> omega_squared;          // r, rad²/s², ascending, > 0
-  std::span<const float> modal_damping;          // r, α_i (1/s), ≥ 0
+  std::span<const Scalar> rest_positions;        // 3n, m
+  std::span<const Scalar> mode_shapes;           // 3n × r row-major: row node*3 + axis
+  std::span<const Scalar> omega_squared;         // r, rad²/s², ascending, > 0
+  std::span<const Scalar> modal_damping;         // r, α_i (1/s), ≥ 0
   std::span<const std::uint32_t> surface_nodes;  // s nodes tools may touch (rows of R)
-  std::span<const float> residual_compliance;    // 3s × 3s row-major, m/N; may be empty
+  std::span<const Scalar> residual_compliance;   // 3s × 3s row-major, m/N; may be empty
 };
 
-struct ModalSettings {
-  float time_step_s = 0.0F;
+template <typename Scalar>
+struct BasicModalSettings {
+  Scalar time_step_s = Scalar{0};
   std::uint32_t active_modes = 0;  // first modes integrated, ≤ stored; 0 = all
   bool static_correction = false;  // add R·F (needs residual_compliance)
 };
 
-struct ImposedDisplacement {
+template <typename Scalar>
+struct BasicImposedDisplacement {
   std::uint32_t node = 0;
-  Vec3 displacement_m = Vec3::Zero();  // from the rest position, at the end of the next step
+  // From the rest position, at the end of the next step.
+  Eigen::Matrix<Scalar, 3, 1> displacement_m = Eigen::Matrix<Scalar, 3, 1>::Zero();
 };
 
-class ModalModel {
+template <typename Scalar>
+class BasicModalModel {
+  static_assert(std::is_same_v<Scalar, float> || std::is_same_v<Scalar, double>,
+                "the modal model is instantiated for float (images) and double (offline)");
+
  public:
+  using Vector3 = Eigen::Matrix<Scalar, 3, 1>;
+
   static constexpr std::size_t kMaxContacts = 8;      // simultaneous imposed displacements
   static constexpr std::size_t kMaxLoadedNodes = 64;  // distinct nodes carrying a force
 
   // Setup path: checks every size, value and index, carves the state from `arena`, and
   // precomputes the Newmark constants per mode. `data`'s arrays must outlive the model.
-  static core::Expected<ModalModel> create(const ModalModelData& data, core::Arena& arena,
-                                           const ModalSettings& settings);
+  static core::Expected<BasicModalModel> create(const BasicModalModelData<Scalar>& data,
+                                                core::Arena& arena,
+                                                const BasicModalSettings<Scalar>& settings);
 
   // ---- RT path: noexcept, no heap ----
 
@@ -76,7 +97,7 @@ class ModalModel {
   // applied until clear_forces(). Refuses (nothing applied): unknown node, non-finite force
   // (numeric_error), more than kMaxLoadedNodes distinct nodes, and — with static correction —
   // a node outside surface_nodes (its residual compliance is unknown).
-  core::Status add_node_force(std::uint32_t node, const Vec3& force_n) noexcept;
+  core::Status add_node_force(std::uint32_t node, const Vector3& force_n) noexcept;
   void clear_forces() noexcept;
 
   // One Newmark step of Δt with the applied forces acting at its end (F_{n+1}).
@@ -85,8 +106,8 @@ class ModalModel {
   // Displacement (m) of `node` after the last step: Φ_node x, plus — with static correction
   // and a surface node — Σ_l R_node,l F_l over the forces of the last step. Zero for an
   // unknown node.
-  Vec3 displacement(std::uint32_t node) const noexcept;
-  Vec3 rest_position(std::uint32_t node) const noexcept;
+  Vector3 displacement(std::uint32_t node) const noexcept;
+  Vector3 rest_position(std::uint32_t node) const noexcept;
 
   // Forces (N, written to forces_out[k]) that make the displacement of targets[k].node after
   // the next step() equal targets[k].displacement_m, given the forces already applied; they
@@ -97,22 +118,22 @@ class ModalModel {
   // forces_out shorter than targets, non-finite targets, a non-surface node with static
   // correction, fewer active modes than 3c without static correction, and a singular contact
   // compliance (a fixed node).
-  core::Status solve_imposed(std::span<const ImposedDisplacement> targets,
-                             std::span<Vec3> forces_out) noexcept;
+  core::Status solve_imposed(std::span<const BasicImposedDisplacement<Scalar>> targets,
+                             std::span<Vector3> forces_out) noexcept;
 
   // Full displacement field (graphics rate, and the contact surface every cycle a tool is
   // near): out[3i + axis] for node i, including the static correction when enabled. Refuses a
-  // span shorter than 3n. Computed as one float matrix–vector product Φ q plus, with static
-  // correction, one row of R per loaded dof (R is symmetric): within float rounding of
+  // span shorter than 3n. Computed as one Scalar matrix–vector product Φ q plus, with static
+  // correction, one row of R per loaded dof (R is symmetric): within Scalar rounding of
   // displacement(i) (which sums in double), not bit-identical. With static correction over
   // fewer modes than stored and a load, it falls back to displacement() per node (exact, slow).
-  core::Status reconstruct(std::span<float> out_3n) const noexcept;
+  core::Status reconstruct(std::span<Scalar> out_3n) const noexcept;
 
   void reset() noexcept;  // back to rest, forces cleared
 
   std::uint32_t node_count() const noexcept { return node_count_; }
   std::uint32_t active_mode_count() const noexcept { return active_modes_; }
-  float time_step_s() const noexcept { return time_step_s_; }
+  Scalar time_step_s() const noexcept { return time_step_s_; }
   bool static_correction() const noexcept { return static_correction_; }
   std::size_t applied_load_count() const noexcept { return pending_count_; }
   std::span<const double> modal_displacement() const noexcept { return {x_.data(), active_modes_}; }
@@ -123,21 +144,21 @@ class ModalModel {
   // One nodal load; plain arrays so the arena can hold it (trivially destructible). Kept in
   // double: forces solved by solve_imposed() go into the dynamics unrounded, so an
   // ill-conditioned contact compliance (few modes, no static correction) still reaches its
-  // targets; callers see float forces.
+  // targets; callers see Scalar forces.
   struct NodeLoad {
     std::uint32_t node;
     std::int32_t surface_index;  // row block in R, −1 if not a surface node
     double force_n[3];
   };
 
-  ModalModel() = default;
+  BasicModalModel() = default;
 
-  const float* shape_row(std::uint32_t node, int axis) const noexcept {
+  const Scalar* shape_row(std::uint32_t node, int axis) const noexcept {
     return mode_shapes_.data() +
            (static_cast<std::size_t>(node) * 3 + static_cast<std::size_t>(axis)) * stored_modes_;
   }
-  const float* compliance_block(std::int32_t row_surface,
-                                std::int32_t column_surface) const noexcept;
+  const Scalar* compliance_block(std::int32_t row_surface,
+                                 std::int32_t column_surface) const noexcept;
   // Σ over `loads` of R_{surface,l} F_l (m); zero when static correction is off.
   // Static response at `node` to `loads` through the residual compliance of the ACTIVE basis:
   // the stored R (the residual of all stored modes) plus the static part of the stored modes
@@ -155,11 +176,11 @@ class ModalModel {
   std::uint32_t stored_modes_ = 0;
   std::uint32_t active_modes_ = 0;
   std::uint32_t surface_count_ = 0;
-  float time_step_s_ = 0.0F;
+  Scalar time_step_s_ = Scalar{0};
   bool static_correction_ = false;
-  std::span<const float> rest_positions_;
-  std::span<const float> mode_shapes_;
-  std::span<const float> residual_compliance_;
+  std::span<const Scalar> rest_positions_;
+  std::span<const Scalar> mode_shapes_;
+  std::span<const Scalar> residual_compliance_;
   std::span<const std::int32_t> surface_index_;  // per node: index in surface_nodes or −1
 
   // Per mode (arena): Newmark constants and state.
@@ -173,13 +194,29 @@ class ModalModel {
   std::span<double> a_;
   std::span<double> modal_force_;  // scratch: Φᵀ F
   std::span<double> predicted_;    // scratch for solve_imposed
-  std::span<float> reconstruct_modes_;     // scratch for reconstruct: x in float
-  std::span<float> reconstruct_residual_;  // scratch for reconstruct: R F over the surface, 3s
+  std::span<Scalar> reconstruct_modes_;     // scratch for reconstruct: x in Scalar
+  std::span<Scalar> reconstruct_residual_;  // scratch for reconstruct: R F over the surface, 3s
 
   std::span<NodeLoad> pending_loads_;  // applied at the next step (kMaxLoadedNodes)
   std::span<NodeLoad> stepped_loads_;  // the forces of the last step (for the static part)
   std::size_t pending_count_ = 0;
   std::size_t stepped_count_ = 0;
 };
+
+// Both instantiations live in modal_model.cpp.
+extern template class BasicModalModel<float>;
+extern template class BasicModalModel<double>;
+
+// The appliance's model: float32 image data, float interface.
+using ModalModelData = BasicModalModelData<float>;
+using ModalSettings = BasicModalSettings<float>;
+using ImposedDisplacement = BasicImposedDisplacement<float>;
+using ModalModel = BasicModalModel<float>;
+
+// The same model on double data with a double interface (offline precision measurements).
+using ModalModelDataDouble = BasicModalModelData<double>;
+using ModalSettingsDouble = BasicModalSettings<double>;
+using ImposedDisplacementDouble = BasicImposedDisplacement<double>;
+using ModalModelDouble = BasicModalModel<double>;
 
 }  // namespace trainer::model
