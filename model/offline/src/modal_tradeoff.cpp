@@ -303,26 +303,35 @@ core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& 
                             " s is not a multiple of the reference step " +
                             std::to_string(reference_time_step_s_) + " s");
   }
-  if (config.precision != RuntimePrecision::float32) {
-    return core::make_error("trade study: runtime precision " +
-                            std::string(to_string(config.precision)) + " is not available");
-  }
   ModalTradePoint point;
   point.config = config;
   auto built = build_for(config, &point.precompute_s);
   if (!built) return std::move(built).error();
-  const ModalBuildResult& build = **built;
   const ModalBuildSpec spec = spec_for(config);
-  point.data_bytes = stored_data_bytes(spec, build, config.static_correction, config.precision);
+  point.data_bytes = stored_data_bytes(spec, **built, config.static_correction, config.precision);
+  const core::Expected<void> measured =
+      config.precision == RuntimePrecision::float32
+          ? measure_runtime<float>(config, cost_options, spec, **built, point)
+          : measure_runtime<double>(config, cost_options, spec, **built, point);
+  if (!measured) return measured.error();
+  return point;
+}
 
-  const FloatModalData data(spec, build);
-  ModalSettings settings;
-  settings.time_step_s = static_cast<float>(config.time_step_s);
+template <typename Scalar>
+core::Expected<void> DuctTradeStudy::measure_runtime(const ModalTradeConfig& config,
+                                                     const CycleCostOptions& cost_options,
+                                                     const ModalBuildSpec& spec,
+                                                     const ModalBuildResult& build,
+                                                     ModalTradePoint& point) const {
+  using Vector3 = Eigen::Matrix<Scalar, 3, 1>;
+  const ModalDataCopy<Scalar> data(spec, build);
+  BasicModalSettings<Scalar> settings;
+  settings.time_step_s = static_cast<Scalar>(config.time_step_s);
   settings.active_modes = static_cast<std::uint32_t>(config.modes);
   settings.static_correction = config.static_correction;
-  auto arena = core::Arena::create(std::size_t{4} << 20);
+  auto arena = core::Arena::create(std::size_t{8} << 20);
   if (!arena) return std::move(arena).error();
-  auto model = ModalModel::create(data.view(), *arena, settings);
+  auto model = BasicModalModel<Scalar>::create(data.view(), *arena, settings);
   if (!model) return std::move(model).error();
 
   // Accuracy: every scenario against its reference.
@@ -338,9 +347,10 @@ core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& 
     double difference_sq = 0.0;
     for (int step = 1; step <= *steps; ++step) {
       const double t = step * config.time_step_s;
-      const ImposedDisplacement target{static_cast<std::uint32_t>(reference.contact_node),
-                                       scenario_target(scenario, reference.inward, t).cast<float>()};
-      Vec3 force = Vec3::Zero();
+      const BasicImposedDisplacement<Scalar> target{
+          static_cast<std::uint32_t>(reference.contact_node),
+          scenario_target(scenario, reference.inward, t).template cast<Scalar>()};
+      Vector3 force = Vector3::Zero();
       model->clear_forces();
       if (const core::Status solved = model->solve_imposed({&target, 1}, {&force, 1}); !solved) {
         return core::make_error("scenario '" + scenario.name + "', " + config.label() +
@@ -349,7 +359,7 @@ core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& 
       (void)model->step();
       const Eigen::Vector3d expected =
           reference_force_at(reference.forces, reference_time_step_s_, t);
-      const double difference = (force.cast<double>() - expected).norm();
+      const double difference = (force.template cast<double>() - expected).norm();
       reference_peak = std::max(reference_peak, expected.norm());
       difference_peak = std::max(difference_peak, difference);
       reference_sq += expected.squaredNorm();
@@ -372,7 +382,7 @@ core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& 
   // Cost: one tool pressing and releasing at the first scenario's node, a 4 Hz depth cycle.
   const ReferenceHistory& reference = references_.front();
   const double depth_m = scenarios_.front().keyframes.back().depth_m;
-  std::vector<float> surface(3 * static_cast<std::size_t>(model->node_count()));
+  std::vector<Scalar> surface(3 * static_cast<std::size_t>(model->node_count()));
   std::vector<double> total_ns;
   std::vector<double> haptic_ns;
   std::vector<double> repetition_medians;
@@ -383,9 +393,10 @@ core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& 
   for (int cycle = 0; cycle < total_cycles; ++cycle) {
     const double t = cycle * config.time_step_s;
     const double depth = depth_m * (0.5 - 0.5 * std::cos(2.0 * M_PI * 4.0 * t));
-    const ImposedDisplacement target{static_cast<std::uint32_t>(reference.contact_node),
-                                     (depth * reference.inward).cast<float>()};
-    Vec3 force;
+    const BasicImposedDisplacement<Scalar> target{
+        static_cast<std::uint32_t>(reference.contact_node),
+        (depth * reference.inward).template cast<Scalar>()};
+    Vector3 force;
     const auto start = Clock::now();
     model->clear_forces();
     (void)model->solve_imposed({&target, 1}, {&force, 1});
@@ -415,7 +426,7 @@ core::Expected<ModalTradePoint> DuctTradeStudy::measure(const ModalTradeConfig& 
   point.cost.warmup_cycles = cost_options.warmup_cycles;
   point.cost.repetitions = cost_options.repetitions;
   point.cost.cycles_per_repetition = cost_options.cycles_per_repetition;
-  return point;
+  return {};
 }
 
 core::Expected<std::size_t> select_for_budget(const std::vector<ModalTradePoint>& points,

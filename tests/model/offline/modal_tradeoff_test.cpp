@@ -106,6 +106,14 @@ TEST(DuctTradeStudy, ErrorsFollowTheKnobs) {
   const ModalTradePoint corrected = measure(10, true, 1e-3);
   const ModalTradePoint fine_step = measure(10, true, 2.5e-4);
   const ModalTradePoint coarse_step = measure(10, true, 2e-3);
+  ModalTradeConfig double_config;
+  double_config.modes = 10;
+  double_config.precision = RuntimePrecision::float64;
+  auto in_double = (*study)->measure(double_config, quick_cost());
+  ASSERT_TRUE(in_double.has_value()) << in_double.error().message;
+  // Same build, same algorithm: float32 storage changes the force by rounding only.
+  EXPECT_NEAR(in_double->worst_error, corrected.worst_error, 1e-3 * corrected.worst_error);
+  EXPECT_EQ(in_double->data_bytes, 2 * corrected.data_bytes);
   for (const ModalTradePoint* point : {&uncorrected, &corrected, &fine_step, &coarse_step}) {
     ASSERT_EQ(point->errors.size(), 5U);
     EXPECT_GT(point->cost.median_ns, 0.0);

@@ -85,6 +85,12 @@ std::vector<SweepEntry> duct_sweep(const offline::ModalBuildSpec& definition, bo
     c.element = other;
     sweep.push_back({other == offline::BendingElement::rao ? "Rao element" : "DKT element", c});
   }
+  for (int r : quick ? std::vector<int>{40} : std::vector<int>{10, 20, 40, 80}) {
+    offline::ModalTradeConfig c = base;
+    c.modes = r;
+    c.precision = offline::RuntimePrecision::float64;
+    sweep.push_back({"double at run time (static correction)", c});
+  }
   // The time step is the loop period: a scene's [loop] period_us, not an image knob.
   for (double step_s : quick ? std::vector<double>{5e-4} : std::vector<double>{2.5e-4, 5e-4, 2e-3}) {
     if (std::abs(step_s - base.time_step_s) < 1e-12) continue;

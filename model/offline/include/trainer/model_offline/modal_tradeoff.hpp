@@ -140,6 +140,13 @@ class DuctTradeStudy {
     std::vector<Eigen::Vector3d> forces;  // at t = (k + 1) Δt_ref
   };
   DuctTradeStudy() = default;
+  // Accuracy over every scenario and cycle cost of one configuration, on the runtime model
+  // instantiated for `Scalar` (float: as the appliance runs an image; double: the same build).
+  template <typename Scalar>
+  core::Expected<void> measure_runtime(const ModalTradeConfig& config,
+                                       const CycleCostOptions& cost_options,
+                                       const ModalBuildSpec& spec, const ModalBuildResult& build,
+                                       ModalTradePoint& point) const;
 
   ModalBuildSpec definition_;
   std::vector<ContactScenario> scenarios_;
