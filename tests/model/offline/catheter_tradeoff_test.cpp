@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,13 +32,20 @@ CatheterStudySpec cbd_spec() {
 }
 
 // The default scenarios, shortened: the push in 0.3 s, the cantilever's load in 0.2 s, 0.45 s
-// each (contact begins at about 0.11 s).
+// each (the tip meets the wall at about 0.08 s). The sanitizer build, ~15x slower here, runs
+// them in 0.2, 0.15 and 0.3 s.
 std::vector<CatheterScenario> short_scenarios(double length_m) {
   std::vector<CatheterScenario> scenarios = default_catheter_scenarios(length_m);
   for (CatheterScenario& scenario : scenarios) {
+#if defined(TRAINER_SANITIZER_BUILD)
+    scenario.duration_s = 0.3;
+    scenario.push_time_s = 0.2;
+    scenario.load_time_s = 0.15;
+#else
     scenario.duration_s = 0.45;
     scenario.push_time_s = 0.3;
     scenario.load_time_s = 0.2;
+#endif
   }
   return scenarios;
 }
@@ -50,19 +58,38 @@ CycleCostOptions quick_cost() {
 #endif
 }
 
+// One study and its measurements shared by the tests below (each measurement runs every
+// scenario): N = 6 and 11 within the budget, 21 refused, and 21 measured beyond it.
 class CatheterTradeTest : public ::testing::Test {
  protected:
+  struct Shared {
+    std::unique_ptr<CatheterTradeStudy> study;
+    CatheterTradePoint coarse, fine, refused, beyond;
+  };
   static void SetUpTestSuite() {
     auto created = CatheterTradeStudy::create(cbd_spec(), short_scenarios(0.15));
     ASSERT_TRUE(created) << created.error().message;
-    study_ = std::move(created).value().release();
+    shared_ = new Shared{std::move(created).value(), {}, {}, {}, {}};
+    const auto measure = [](std::uint32_t n, bool beyond, CatheterTradePoint& out) {
+      auto point = shared_->study->measure({n}, quick_cost(), beyond);
+      ASSERT_TRUE(point) << point.error().message;
+      out = std::move(point).value();
+    };
+    measure(6, false, shared_->coarse);
+    measure(11, false, shared_->fine);
+    measure(21, false, shared_->refused);
+    measure(21, true, shared_->beyond);
+    study_ = shared_->study.get();
   }
   static void TearDownTestSuite() {
-    delete study_;
+    delete shared_;
+    shared_ = nullptr;
     study_ = nullptr;
   }
+  static Shared* shared_;
   static CatheterTradeStudy* study_;
 };
+CatheterTradeTest::Shared* CatheterTradeTest::shared_ = nullptr;
 CatheterTradeStudy* CatheterTradeTest::study_ = nullptr;
 
 TEST(CatheterTrade, ChainPointInterpolatesAlongTheChainAndClamps) {
@@ -114,7 +141,7 @@ TEST_F(CatheterTradeTest, ReferenceChainFollowsTheRuntimeCatheterAtTheSameN) {
 TEST_F(CatheterTradeTest, GraspFeelsTheWallNormalOnceSettled) {
   for (const CatheterScenario& scenario : study_->scenarios()) {
     if (scenario.kind != CatheterScenarioKind::insertion) continue;
-    auto history = study_->run(scenario, 21, RuntimePrecision::float64);
+    auto history = study_->run(scenario, 11, RuntimePrecision::float64);
     ASSERT_TRUE(history) << history.error().message;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (std::size_t k = history->grasp_force_n.size() - 50; k < history->grasp_force_n.size(); ++k) {
@@ -129,10 +156,8 @@ TEST_F(CatheterTradeTest, GraspFeelsTheWallNormalOnceSettled) {
 }
 
 TEST_F(CatheterTradeTest, ErrorsFallWithTheParticleCountAndCostsAreOrdered) {
-  auto coarse = study_->measure({6}, quick_cost());
-  auto fine = study_->measure({11}, quick_cost());
-  ASSERT_TRUE(coarse) << coarse.error().message;
-  ASSERT_TRUE(fine) << fine.error().message;
+  const CatheterTradePoint* coarse = &shared_->coarse;
+  const CatheterTradePoint* fine = &shared_->fine;
   ASSERT_TRUE(coarse->measured && fine->measured);
   EXPECT_FALSE(coarse->refused || fine->refused);
   ASSERT_EQ(coarse->errors.size(), study_->scenarios().size());
@@ -156,7 +181,7 @@ TEST_F(CatheterTradeTest, ErrorsFallWithTheParticleCountAndCostsAreOrdered) {
   EXPECT_EQ(fine->substeps_per_period, 44U);
   EXPECT_GT(coarse->substeps_per_period, 0U);
   EXPECT_LT(coarse->substeps_per_period, fine->substeps_per_period);
-  for (const CatheterTradePoint* point : {&*coarse, &*fine}) {
+  for (const CatheterTradePoint* point : {coarse, fine}) {
     EXPECT_GT(point->cost.median_ns, 0.0);
     EXPECT_GE(point->cost.p99_ns, point->cost.median_ns);
     EXPECT_GT(point->cost.haptic_median_ns, 0.0);
@@ -172,8 +197,7 @@ TEST_F(CatheterTradeTest, ErrorsFallWithTheParticleCountAndCostsAreOrdered) {
 }
 
 TEST_F(CatheterTradeTest, OverBudgetParticleCountIsReportedRefusedNotFailed) {
-  auto refused = study_->measure({21}, quick_cost());
-  ASSERT_TRUE(refused) << refused.error().message;
+  const CatheterTradePoint* refused = &shared_->refused;
   EXPECT_TRUE(refused->refused);
   EXPECT_FALSE(refused->measured);
   EXPECT_GT(refused->substeps_per_period, 64U);
@@ -182,9 +206,8 @@ TEST_F(CatheterTradeTest, OverBudgetParticleCountIsReportedRefusedNotFailed) {
   EXPECT_EQ(refused->cost.median_ns, 0.0);
 
   // Beyond the budget on request: measured, and nearer the reference than N = 11.
-  auto beyond = study_->measure({21}, quick_cost(), true);
-  auto within = study_->measure({11}, quick_cost());
-  ASSERT_TRUE(beyond && within);
+  const CatheterTradePoint* beyond = &shared_->beyond;
+  const CatheterTradePoint* within = &shared_->fine;
   EXPECT_TRUE(beyond->refused);
   EXPECT_TRUE(beyond->measured);
   EXPECT_LT(beyond->worst_error, within->worst_error);
@@ -195,8 +218,7 @@ TEST_F(CatheterTradeTest, PlainReferenceCheckMeasuresTheExtrapolation) {
   // The plain N_ref run against the extrapolated reference is its first-order error, the same
   // as N_ref against N_ref/2, so it is non-zero and below the error of N_ref/2 = 11 itself.
   ASSERT_EQ(study_->reference_check().size(), study_->scenarios().size());
-  auto half = study_->measure({11}, quick_cost());
-  ASSERT_TRUE(half);
+  const CatheterTradePoint* half = &shared_->fine;
   for (std::size_t s = 0; s < half->errors.size(); ++s) {
     EXPECT_GT(study_->reference_check()[s].error, 0.0);
     EXPECT_LT(study_->reference_check()[s].error, half->errors[s].error);
