@@ -19,18 +19,21 @@
 // on a multiple of L/5, a particle for N = 6, 11, 16, 21, 31, 41, 81, 161.
 //
 // The reference: the same chain (springs, damping, holds, contact law, substeps) integrated in
-// double — the float32 runtime's rounding in the stiff axial springs alone moves the grasp
-// force by ~7 % of its peak from period to period at N = 41..81 — at N_ref, and by default
-// extrapolated (Richardson, first order) with N_ref/2: every output here converges at first
-// order in 1/N (the mass ends are not halved; the forceps' two-particle hold has no root hinge,
-// unlike clamp_start), measured ratios of successive differences 1.5, 1.7, 1.8 → 2 for
-// N = 6..81, so the plain N_ref = 81 run is itself ~4 % off in the grasp force.
+// double at N_ref — in float32 the stiff axial springs turn a position's rounding into
+// period-to-period grasp-force noise that grows with N (cbd catheter, insertion at 45°: 1 %, 2 %
+// and 4 % of the peak at N = 11, 41, 81) — and by default extrapolated (Richardson, first
+// order) with N_ref/2. Every output here converges at first order in 1/N: the mass ends are
+// not halved, and the forceps' two-particle hold has no hinge compensation at the grasp (the
+// free part's first half-cell gets k_b instead of the 2 k_b clamp_start's root hinge gives), so
+// the chain is too soft there by ~3/(2 n_free). Measured on the cbd catheter, steady grasp
+// force at N = 6, 11, 21, 41, 81: ratios of successive differences 1.2, 1.5, 1.7 (→ 2); the
+// plain N_ref = 81 run is itself ~7 % off the extrapolated reference in that force.
 //
-// Errors: the grasp force at contact onset chatters from period to period (the tip bouncing on
-// the penalty wall; ~1 mN at a 8 mN peak for the cbd catheter), in double too, and that chatter
-// does not converge sample by sample; the force error therefore compares the forces averaged
-// over a sliding window (10 ms by default, centred), and the per-period error is reported
-// beside it. Positions are compared per period.
+// Errors: the grasp force also chatters from period to period while the tip slides on the
+// penalty wall (in double too; up to ~2 % of the peak), and that chatter does not converge
+// sample by sample, so the force error compares forces averaged over a sliding window (10 ms,
+// centred, by default); the per-period error is reported beside it. Positions are compared
+// per period.
 //
 // Same physics at every N: the definition's damping b is per particle (force −b v), given for
 // its own particle count N_def; the study uses b_N = b · N_def / N at N particles, which keeps
