@@ -62,41 +62,6 @@ core::Expected<model::Catheter> create_catheter(const config::CatheterConfig& cf
   return model::Catheter::create(params, setup, arena);
 }
 
-// The runtime settings of a tensor model from its definition: contact capacity and the
-// quasi-non-linear maps, each checked (monotone, c0 = 0) with the definition file named.
-core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDefinition& definition) {
-  const config::TensorConfig& tensor = definition.tensor;
-  model::TensorSettings settings;
-  settings.max_contacts = tensor.max_contacts;
-  const auto map = [&](const config::AmplitudeMapConfig& cfg, const char* name,
-                       model::AmplitudeMap& out) -> core::Expected<void> {
-    if (cfg.max_amplitude == 0.0) return {};  // not configured: identity
-    std::string what = definition.source_path.string();
-    what.append(": [nonlinear.").append(name).append("]");
-    auto created = model::AmplitudeMap::create(cfg.coefficients, cfg.max_amplitude, what);
-    if (!created) return std::move(created).error();
-    out = created.value();
-    return {};
-  };
-  if (auto ok = map(tensor.displacement_colinear, "displacement_colinear",
-                    settings.nonlinear.displacement_colinear); !ok) {
-    return std::move(ok).error();
-  }
-  if (auto ok = map(tensor.displacement_orthogonal, "displacement_orthogonal",
-                    settings.nonlinear.displacement_orthogonal); !ok) {
-    return std::move(ok).error();
-  }
-  if (auto ok = map(tensor.force_colinear, "force_colinear", settings.nonlinear.force_colinear);
-      !ok) {
-    return std::move(ok).error();
-  }
-  if (auto ok = map(tensor.force_orthogonal, "force_orthogonal",
-                    settings.nonlinear.force_orthogonal); !ok) {
-    return std::move(ok).error();
-  }
-  return settings;
-}
-
 // Wall contacts kept per catheter particle and modal model (a particle squeezed between two
 // walls has two patches).
 constexpr std::uint32_t kWallContactsPerParticle = 2;
@@ -136,6 +101,40 @@ model::DisplacementContactSettings tip_contact_settings(std::span<const std::uin
 }
 
 }  // namespace
+
+core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDefinition& definition) {
+  const config::TensorConfig& tensor = definition.tensor;
+  model::TensorSettings settings;
+  settings.max_contacts = tensor.max_contacts;
+  const auto map = [&](const config::AmplitudeMapConfig& cfg, const char* name,
+                       model::AmplitudeMap& out) -> core::Expected<void> {
+    if (cfg.max_amplitude == 0.0) return {};  // not configured: identity
+    std::string what = definition.source_path.string();
+    what.append(": [nonlinear.").append(name).append("]");
+    auto created = model::AmplitudeMap::create(cfg.coefficients, cfg.max_amplitude, what);
+    if (!created) return std::move(created).error();
+    out = created.value();
+    return {};
+  };
+  if (auto ok = map(tensor.displacement_colinear, "displacement_colinear",
+                    settings.nonlinear.displacement_colinear); !ok) {
+    return std::move(ok).error();
+  }
+  if (auto ok = map(tensor.displacement_orthogonal, "displacement_orthogonal",
+                    settings.nonlinear.displacement_orthogonal); !ok) {
+    return std::move(ok).error();
+  }
+  if (auto ok = map(tensor.force_colinear, "force_colinear", settings.nonlinear.force_colinear);
+      !ok) {
+    return std::move(ok).error();
+  }
+  if (auto ok = map(tensor.force_orthogonal, "force_orthogonal",
+                    settings.nonlinear.force_orthogonal); !ok) {
+    return std::move(ok).error();
+  }
+  return settings;
+}
+
 
 // The instrument's segments as the catheter contact sees them.
 model::ForcepsShape HapticApp::forceps_shape(const InstrumentState& instrument) noexcept {

@@ -5,6 +5,7 @@
 // the model's reference over contact scenarios, then writes CSV and JSON, a Pareto plot per
 // model and the cheapest configuration for each error budget. Usage: `tradeoff --help`;
 // results and how to read them: docs/performance.md, "Speed/accuracy trade".
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -19,8 +20,11 @@
 
 #include "model_spec.hpp"
 #include "pareto.hpp"
+#include "trainer/app/haptic_app.hpp"
 #include "trainer/config/scene.hpp"
+#include "trainer/model_offline/catheter_tradeoff.hpp"
 #include "trainer/model_offline/modal_tradeoff.hpp"
+#include "trainer/model_offline/tensor_tradeoff.hpp"
 
 namespace {
 
@@ -244,6 +248,214 @@ nlohmann::json run_duct(const Options& options, const std::string& name,
           {"recommendations", recommendations}};
 }
 
+// The cheapest measured configuration within `budget` on the tuning scenarios and then on the
+// held-out ones (the duct's rule, modal_tradeoff.hpp, for models with one knob): index or none.
+struct SimplePoint {
+  std::string label;
+  bool usable = true;  // false: refused at start (e.g. over the catheter's substep budget)
+  double cost_ns = 0.0;
+  double tuning_error = 0.0;
+  double validation_error = 0.0;
+};
+
+nlohmann::json recommend_simple(const std::vector<SimplePoint>& points,
+                                const std::vector<double>& budgets_percent) {
+  std::vector<std::size_t> order(points.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return points[a].cost_ns < points[b].cost_ns; });
+  nlohmann::json recommendations = nlohmann::json::array();
+  std::cout << "  recommendation (cheapest within the budget on the tuning scenarios, then on the "
+               "held-out ones; refused configurations excluded):\n";
+  for (double budget_percent : budgets_percent) {
+    const double budget = budget_percent / 100.0;
+    const auto found = std::find_if(order.begin(), order.end(), [&](std::size_t i) {
+      return points[i].usable && points[i].tuning_error <= budget &&
+             points[i].validation_error <= budget;
+    });
+    if (found == order.end()) {
+      std::printf("    budget %5.2f %%: no usable configuration meets it\n", budget_percent);
+      recommendations.push_back({{"budget_percent", budget_percent}, {"met", false}});
+      continue;
+    }
+    const SimplePoint& chosen = points[*found];
+    std::printf("    budget %5.2f %%: %s, %.0f ns per cycle, error %.3f %% tuning, %.3f %% held out\n",
+                budget_percent, chosen.label.c_str(), chosen.cost_ns, 100.0 * chosen.tuning_error,
+                100.0 * chosen.validation_error);
+    recommendations.push_back({{"budget_percent", budget_percent},
+                               {"met", true},
+                               {"label", chosen.label},
+                               {"cost_median_ns", chosen.cost_ns},
+                               {"tuning_error", chosen.tuning_error},
+                               {"validation_error", chosen.validation_error}});
+  }
+  return recommendations;
+}
+
+nlohmann::json run_catheter(const Options& options, const std::string& name,
+                            const config::ModelDefinition& definition,
+                            const std::filesystem::path& directory) {
+  const config::CatheterConfig& cfg = definition.catheter;
+  offline::CatheterStudySpec spec;
+  spec.params.length_m = static_cast<float>(cfg.length_m);
+  spec.params.outer_radius_m = static_cast<float>(cfg.outer_radius_m);
+  spec.params.bending_stiffness_n_m2 = static_cast<float>(cfg.bending_stiffness_n_m2);
+  spec.params.axial_stiffness_n = static_cast<float>(cfg.axial_stiffness_n);
+  spec.params.linear_density_kg_per_m = static_cast<float>(cfg.linear_density_kg_per_m);
+  spec.params.damping_n_s_per_m = static_cast<float>(cfg.damping_n_s_per_m);
+  spec.params.particle_count = cfg.particle_count;
+  spec.max_substeps = cfg.max_substeps;
+  spec.contact.stiffness_n_per_m = cfg.wall_stiffness_n_per_m;
+  spec.contact.damping_n_s_per_m = cfg.wall_damping_n_s_per_m;
+  spec.contact.max_force_n = cfg.max_contact_force_n;
+  // The reference: N = 81 in double, extrapolated with N = 41 (--quick: 41 with 21).
+  spec.reference_particle_count = options.quick ? 41U : 81U;
+  std::cout << "model '" << name << "' (particle catheter, L " << cfg.length_m
+            << " m, definition N = " << cfg.particle_count << ", budget " << cfg.max_substeps
+            << " substeps): reference N = " << spec.reference_particle_count
+            << " in double, Richardson-extrapolated\n";
+  auto study = value_or_throw(offline::CatheterTradeStudy::create(
+      spec, offline::default_catheter_scenarios(cfg.length_m)));
+  std::cout << "  reference runs " << format("%.1f", study->reference_run_s()) << " s\n";
+
+  const std::vector<std::uint32_t> counts = options.quick ? std::vector<std::uint32_t>{6, 11}
+                                                          : std::vector<std::uint32_t>{6, 11, 16, 21, 31, 41};
+  std::vector<offline::CatheterTradePoint> points;
+  for (std::uint32_t count : counts) {
+    offline::CatheterTradePoint point =
+        value_or_throw(study->measure({count}, options.cost, /*measure_beyond_budget=*/true));
+    std::printf("  N %3u: %3u substeps%s  cost %9.0f ns (p99 %9.0f)  tuning %7.3f %%  held-out %7.3f %%\n",
+                count, point.substeps_per_period, point.refused ? " (refused: over budget)" : "",
+                point.cost.median_ns, point.cost.p99_ns, 100.0 * point.tuning_error,
+                100.0 * point.validation_error);
+    points.push_back(std::move(point));
+  }
+  {
+    std::ofstream csv(directory / (name + ".csv"));
+    csv << "label,particles,substeps_per_period,stable_substep_us,refused,cost_median_ns,cost_p99_ns,"
+           "step_median_ns,tuning_error,validation_error,worst_error\n";
+    std::ofstream scenarios_csv(directory / (name + "_scenarios.csv"));
+    scenarios_csv << "label,scenario,tuning,force_error,force_error_per_period,tip_error,"
+                     "shape_error,error,reference_peak_force_n\n";
+    for (const auto& p : points) {
+      csv << p.config.label() << ',' << p.config.particle_count << ',' << p.substeps_per_period
+          << ',' << p.stable_substep_s * 1e6 << ',' << (p.refused ? 1 : 0) << ','
+          << p.cost.median_ns << ',' << p.cost.p99_ns << ',' << p.cost.haptic_median_ns << ','
+          << p.tuning_error << ',' << p.validation_error << ',' << p.worst_error << '\n';
+      for (const auto& e : p.errors) {
+        scenarios_csv << p.config.label() << ',' << e.scenario << ',' << (e.tuning ? 1 : 0) << ','
+                      << e.force_error << ',' << e.force_error_per_period << ',' << e.tip_error
+                      << ',' << e.shape_error << ',' << e.error << ','
+                      << e.reference_peak_force_n << '\n';
+      }
+    }
+  }
+  std::vector<TradePoint> plotted;
+  std::vector<SimplePoint> simple;
+  for (const auto& p : points) {
+    plotted.push_back({p.refused ? "over the substep budget (refused at start)" : "particle count",
+                       p.config.label(), p.worst_error, p.cost.median_ns});
+    simple.push_back({p.config.label(), !p.refused, p.cost.median_ns, p.tuning_error,
+                      p.validation_error});
+  }
+  const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
+      directory, name, "'" + name + "': grasp force and shape error vs extrapolated fine chain",
+      plotted);
+  if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
+  return {{"name", name},
+          {"kind", "catheter"},
+          {"definition", definition.source_path.string()},
+          {"reference", "the same chain in double at N = " +
+                            std::to_string(spec.reference_particle_count) +
+                            ", Richardson-extrapolated"},
+          {"csv", (directory / (name + ".csv")).string()},
+          {"plot", plot_problem.empty() ? (directory / (name + ".png")).string() : ""},
+          {"recommendations", recommend_simple(simple, options.budgets_percent)}};
+}
+
+nlohmann::json run_tensor(const Options& options, const std::string& name,
+                          const config::ModelDefinition& definition,
+                          const std::filesystem::path& directory) {
+  offline::TensorStudySpec spec;
+  spec.mesh = value_or_throw(trainer::tools::modelc::tet_mesh_from(definition));
+  spec.fixes = value_or_throw(trainer::tools::modelc::tet_fixes_from(definition, spec.mesh));
+  spec.material = {definition.material.young_modulus_pa, definition.material.poisson_ratio,
+                   definition.material.density_kg_per_m3};
+  spec.contact_set = definition.tensor.contact_set;
+  spec.nonlinear = value_or_throw(trainer::app::tensor_settings_from(definition)).nonlinear;
+  const auto set = spec.mesh.node_sets.find(spec.contact_set);
+  if (set == spec.mesh.node_sets.end()) {
+    throw std::runtime_error(definition.source_path.string() + ": [tensor] contact_set '" +
+                             spec.contact_set + "' is not a node set of the mesh");
+  }
+  std::vector<int> fixed;
+  for (const auto& fix : spec.fixes) fixed.insert(fixed.end(), fix.nodes.begin(), fix.nodes.end());
+  std::sort(fixed.begin(), fixed.end());
+  std::vector<int> contacts;
+  for (int node : set->second) {
+    if (!std::binary_search(fixed.begin(), fixed.end(), node)) contacts.push_back(node);
+  }
+  std::sort(contacts.begin(), contacts.end());
+  contacts.erase(std::unique(contacts.begin(), contacts.end()), contacts.end());
+  auto scenarios = value_or_throw(offline::default_tensor_scenarios(spec.mesh, contacts));
+  std::cout << "model '" << name << "' (tensor model, " << spec.mesh.nodes.rows()
+            << " nodes): reference = direct sparse solve with every probe-covered node\n";
+  auto study = value_or_throw(offline::TensorTradeStudy::create(std::move(spec), std::move(scenarios)));
+  std::cout << "  precompute " << format("%.1f", study->precompute_s()) << " s, reference solves "
+            << format("%.1f", study->reference_solve_s()) << " s, largest contact set "
+            << study->largest_contact_set() << " nodes\n";
+  const std::vector<std::uint32_t> caps = options.quick ? std::vector<std::uint32_t>{1, 4, 8}
+                                                        : std::vector<std::uint32_t>{1, 2, 3, 4, 6, 8, 12, 16};
+  std::vector<offline::TensorTradePoint> points;
+  for (std::uint32_t cap : caps) {
+    offline::TensorTradePoint point = value_or_throw(study->measure({cap}, options.cost));
+    std::printf("  m %2u: solve %8.0f ns, solve + field %8.0f ns (p99 %8.0f)  tuning %9.5f %%  held-out %9.5f %%\n",
+                cap, point.cost.haptic_median_ns, point.cost.median_ns, point.cost.p99_ns,
+                100.0 * point.tuning_error, 100.0 * point.validation_error);
+    points.push_back(std::move(point));
+  }
+  {
+    std::ofstream csv(directory / (name + ".csv"));
+    csv << "label,max_contacts,solve_median_ns,solve_p99_ns,solve_and_field_median_ns,"
+           "solve_and_field_p99_ns,state_bytes,tuning_error,validation_error,worst_error\n";
+    std::ofstream scenarios_csv(directory / (name + "_scenarios.csv"));
+    scenarios_csv << "label,scenario,tuning,radius_m,covered_nodes,contact_nodes,imposed_nodes,"
+                     "force_error,direction_error_rad,reference_force_n\n";
+    for (const auto& p : points) {
+      csv << p.config.label() << ',' << p.config.max_contacts << ',' << p.cost.haptic_median_ns
+          << ',' << p.cost.haptic_p99_ns << ',' << p.cost.median_ns << ',' << p.cost.p99_ns << ','
+          << p.state_bytes << ',' << p.tuning_error << ',' << p.validation_error << ','
+          << p.worst_error << '\n';
+      for (const auto& e : p.errors) {
+        scenarios_csv << p.config.label() << ',' << e.scenario << ',' << (e.tuning ? 1 : 0) << ','
+                      << e.radius_m << ',' << e.covered_nodes << ',' << e.contact_nodes << ','
+                      << e.imposed_nodes << ',' << e.force_error << ',' << e.direction_error_rad
+                      << ',' << e.reference_force_n << '\n';
+      }
+    }
+  }
+  // The haptic cycle needs the forces (solve); the field is graphics' and collision's.
+  std::vector<TradePoint> plotted;
+  std::vector<SimplePoint> simple;
+  for (const auto& p : points) {
+    plotted.push_back({"contact cap m (solve)", p.config.label(), p.worst_error,
+                       p.cost.haptic_median_ns});
+    simple.push_back({p.config.label(), true, p.cost.haptic_median_ns, p.tuning_error,
+                      p.validation_error});
+  }
+  const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
+      directory, name, "'" + name + "': probe force error vs direct solve against solve cost",
+      plotted);
+  if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
+  return {{"name", name},
+          {"kind", "tet_tensor"},
+          {"definition", definition.source_path.string()},
+          {"reference", "direct sparse solve (double) with every probe-covered node imposed"},
+          {"csv", (directory / (name + ".csv")).string()},
+          {"plot", plot_problem.empty() ? (directory / (name + ".png")).string() : ""},
+          {"recommendations", recommend_simple(simple, options.budgets_percent)}};
+}
+
 int run(const Options& options) {
   config::LoadOptions load;
   load.require_script_file = false;
@@ -264,8 +476,10 @@ int run(const Options& options) {
         summary["models"].push_back(run_duct(options, entry.name, entry.definition, directory));
         break;
       case config::ModelKind::catheter:
+        summary["models"].push_back(run_catheter(options, entry.name, entry.definition, directory));
+        break;
       case config::ModelKind::tet_tensor:
-        std::cout << "model '" << entry.name << "': no trade study for this kind yet\n";
+        summary["models"].push_back(run_tensor(options, entry.name, entry.definition, directory));
         break;
     }
   }

@@ -42,6 +42,11 @@
 
 namespace trainer::app {
 
+// The runtime settings of a tensor model from its definition: contact capacity and the
+// quasi-non-linear maps, each checked (monotone, c0 = 0) with the definition file named. The
+// trainer and the tradeoff tool use it, so both run the model a definition describes.
+core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDefinition& definition);
+
 struct HalBinding {
   hal::EncoderInterface* encoders = nullptr;
   hal::ActuatorInterface* actuators = nullptr;
