@@ -40,7 +40,8 @@ std::string quoted(const std::string& text) {
 }  // namespace
 
 std::string plot_pareto(const std::filesystem::path& directory, const std::string& stem,
-                        const std::string& title, const std::vector<TradePoint>& points) {
+                        const std::string& title, const std::string& error_label,
+                        const std::vector<TradePoint>& points) {
   std::map<std::string, std::vector<std::size_t>> groups;
   std::vector<std::string> group_order;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -75,7 +76,7 @@ std::string plot_pareto(const std::filesystem::path& directory, const std::strin
         << "set output " << quoted(png.string()) << "\n"
         << "set title " << quoted(title) << "\n"
         << "set logscale xy\nset grid xtics ytics mxtics mytics\n"
-        << "set xlabel 'force error, worst scenario (RMS over time, % of the reference RMS)'\n"
+        << "set xlabel " << quoted(error_label) << "\nset format x '%g'\n"
         << "set ylabel 'median cost per 1 ms of simulated time (us)'\nset key outside right top\n"
         << "plot ";
     const char* markers[] = {"7", "5", "9", "11", "13", "3"};

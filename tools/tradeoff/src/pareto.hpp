@@ -20,10 +20,11 @@ struct TradePoint {
 std::vector<std::size_t> pareto_front(const std::vector<TradePoint>& points);
 
 // Writes `<stem>.dat` files per group and the front, and `<stem>.gp`, then runs gnuplot to make
-// `<stem>.png` (error in % on a log x axis, cost in µs on a log y axis, the front joined and
+// `<stem>.png` (error in % on a log x axis, described by `error_label`, cost in µs on a log y axis, the front joined and
 // labelled). Returns "" on success, else why the PNG was not made (the data files are written
 // either way).
 std::string plot_pareto(const std::filesystem::path& directory, const std::string& stem,
-                        const std::string& title, const std::vector<TradePoint>& points);
+                        const std::string& title, const std::string& error_label,
+                        const std::vector<TradePoint>& points);
 
 }  // namespace trainer::tools::tradeoff

@@ -170,7 +170,8 @@ nlohmann::json run_duct(const Options& options, const std::string& name,
                        cost_per_ms_ns(points[i])});
   }
   const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
-      directory, name, "'" + name + "': force error vs DNIOS against cost (Pareto front joined)", plotted);
+      directory, name, "'" + name + "': force error vs DNIOS against cost (Pareto front joined)",
+      "force error, worst scenario (RMS over time, % of the reference RMS)", plotted);
   if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
 
   // Recommendation per budget, chosen on the tuning scenarios and checked on the held-out ones
@@ -360,7 +361,7 @@ nlohmann::json run_catheter(const Options& options, const std::string& name,
   }
   const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
       directory, name, "'" + name + "': grasp force and shape error vs extrapolated fine chain",
-      plotted);
+      "error, worst scenario (max of grasp-force and shape error, %)", plotted);
   if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
   return {{"name", name},
           {"kind", "catheter"},
@@ -445,7 +446,7 @@ nlohmann::json run_tensor(const Options& options, const std::string& name,
   }
   const std::string plot_problem = trainer::tools::tradeoff::plot_pareto(
       directory, name, "'" + name + "': probe force error vs direct solve against solve cost",
-      plotted);
+      "total probe force error, worst scenario and depth (%)", plotted);
   if (!plot_problem.empty()) std::cerr << "tradeoff: " << plot_problem << "\n";
   return {{"name", name},
           {"kind", "tet_tensor"},
