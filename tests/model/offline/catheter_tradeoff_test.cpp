@@ -58,39 +58,15 @@ CycleCostOptions quick_cost() {
 #endif
 }
 
-// One study and its measurements shared by the tests below (each measurement runs every
-// scenario): N = 6 and 11 within the budget, 21 refused, and 21 measured beyond it.
-class CatheterTradeTest : public ::testing::Test {
- protected:
-  struct Shared {
-    std::unique_ptr<CatheterTradeStudy> study;
-    CatheterTradePoint coarse, fine, refused, beyond;
-  };
-  static void SetUpTestSuite() {
-    auto created = CatheterTradeStudy::create(cbd_spec(), short_scenarios(0.15));
-    ASSERT_TRUE(created) << created.error().message;
-    shared_ = new Shared{std::move(created).value(), {}, {}, {}, {}};
-    const auto measure = [](std::uint32_t n, bool beyond, CatheterTradePoint& out) {
-      auto point = shared_->study->measure({n}, quick_cost(), beyond);
-      ASSERT_TRUE(point) << point.error().message;
-      out = std::move(point).value();
-    };
-    measure(6, false, shared_->coarse);
-    measure(11, false, shared_->fine);
-    measure(21, false, shared_->refused);
-    measure(21, true, shared_->beyond);
-    study_ = shared_->study.get();
-  }
-  static void TearDownTestSuite() {
-    delete shared_;
-    shared_ = nullptr;
-    study_ = nullptr;
-  }
-  static Shared* shared_;
-  static CatheterTradeStudy* study_;
-};
-CatheterTradeTest::Shared* CatheterTradeTest::shared_ = nullptr;
-CatheterTradeStudy* CatheterTradeTest::study_ = nullptr;
+// A study whose only use is run(): the cheapest reference (N = 6, plain).
+std::unique_ptr<CatheterTradeStudy> runner() {
+  CatheterStudySpec spec = cbd_spec();
+  spec.reference_particle_count = 6;
+  spec.extrapolate_reference = false;
+  auto created = CatheterTradeStudy::create(spec, short_scenarios(0.15));
+  EXPECT_TRUE(created) << created.error().message;
+  return created ? std::move(created).value() : nullptr;
+}
 
 TEST(CatheterTrade, ChainPointInterpolatesAlongTheChainAndClamps) {
   const std::vector<Eigen::Vector3f> chain{{0.0F, 0.0F, 0.0F}, {0.1F, 0.0F, 0.0F},
@@ -106,11 +82,13 @@ TEST(CatheterTrade, ChainPointInterpolatesAlongTheChainAndClamps) {
 
 // The double reference chain reimplements Catheter::step; at the same N it must follow the float
 // runtime to float rounding (positions) and to the runtime's rounding chatter (forces).
-TEST_F(CatheterTradeTest, ReferenceChainFollowsTheRuntimeCatheterAtTheSameN) {
-  const CatheterScenario& insertion = study_->scenarios().front();
+TEST(CatheterTrade, ReferenceChainFollowsTheRuntimeCatheterAtTheSameN) {
+  const std::unique_ptr<CatheterTradeStudy> study = runner();
+  ASSERT_TRUE(study);
+  const CatheterScenario& insertion = study->scenarios().front();
   ASSERT_EQ(insertion.kind, CatheterScenarioKind::insertion);
-  auto runtime = study_->run(insertion, 11, RuntimePrecision::float32);
-  auto reference = study_->run(insertion, 11, RuntimePrecision::float64);
+  auto runtime = study->run(insertion, 11, RuntimePrecision::float32);
+  auto reference = study->run(insertion, 11, RuntimePrecision::float64);
   ASSERT_TRUE(runtime) << runtime.error().message;
   ASSERT_TRUE(reference) << reference.error().message;
   ASSERT_EQ(runtime->stations_m.size(), reference->stations_m.size());
@@ -130,7 +108,7 @@ TEST_F(CatheterTradeTest, ReferenceChainFollowsTheRuntimeCatheterAtTheSameN) {
   ASSERT_GT(force_peak_n, 1e-3);                  // the tip did meet the wall
   EXPECT_LT(force_difference_n, 0.05 * force_peak_n);
   // And a different N is visibly different (the comparison above is not vacuous).
-  auto coarse = study_->run(insertion, 6, RuntimePrecision::float64);
+  auto coarse = study->run(insertion, 6, RuntimePrecision::float64);
   ASSERT_TRUE(coarse) << coarse.error().message;
   EXPECT_GT((coarse->grasp_force_n.back() - reference->grasp_force_n.back()).norm(),
             0.2 * force_peak_n);
@@ -138,10 +116,12 @@ TEST_F(CatheterTradeTest, ReferenceChainFollowsTheRuntimeCatheterAtTheSameN) {
 
 // Pressed against a frictionless wall and come to rest, the catheter is pushed by the wall along
 // its normal only: what the grasp feels is along the wall normal n = (−sin α, cos α, 0).
-TEST_F(CatheterTradeTest, GraspFeelsTheWallNormalOnceSettled) {
-  for (const CatheterScenario& scenario : study_->scenarios()) {
+TEST(CatheterTrade, GraspFeelsTheWallNormalOnceSettled) {
+  const std::unique_ptr<CatheterTradeStudy> study = runner();
+  ASSERT_TRUE(study);
+  for (const CatheterScenario& scenario : study->scenarios()) {
     if (scenario.kind != CatheterScenarioKind::insertion) continue;
-    auto history = study_->run(scenario, 11, RuntimePrecision::float64);
+    auto history = study->run(scenario, 11, RuntimePrecision::float64);
     ASSERT_TRUE(history) << history.error().message;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (std::size_t k = history->grasp_force_n.size() - 50; k < history->grasp_force_n.size(); ++k) {
@@ -155,12 +135,27 @@ TEST_F(CatheterTradeTest, GraspFeelsTheWallNormalOnceSettled) {
   }
 }
 
-TEST_F(CatheterTradeTest, ErrorsFallWithTheParticleCountAndCostsAreOrdered) {
-  const CatheterTradePoint* coarse = &shared_->coarse;
-  const CatheterTradePoint* fine = &shared_->fine;
+// One study (N_ref = 21 extrapolated with 11) and four measurements: N = 6 and 11 within the
+// budget, 21 refused, and 21 measured beyond it. One test, because ctest runs every test case
+// in a process of its own and the study is the expensive part.
+TEST(CatheterTrade, ErrorsFallWithTheParticleCountCostsGrowAndTheBudgetRefuses) {
+  auto created = CatheterTradeStudy::create(cbd_spec(), short_scenarios(0.15));
+  ASSERT_TRUE(created) << created.error().message;
+  const CatheterTradeStudy& study = **created;
+  const auto measure = [&](std::uint32_t n, bool beyond) {
+    auto point = study.measure({n}, quick_cost(), beyond);
+    EXPECT_TRUE(point) << point.error().message;
+    return point ? std::move(point).value() : CatheterTradePoint{};
+  };
+  const CatheterTradePoint coarse_point = measure(6, false);
+  const CatheterTradePoint fine_point = measure(11, false);
+  const CatheterTradePoint refused_point = measure(21, false);
+  const CatheterTradePoint beyond_point = measure(21, true);
+  const CatheterTradePoint* coarse = &coarse_point;
+  const CatheterTradePoint* fine = &fine_point;
   ASSERT_TRUE(coarse->measured && fine->measured);
   EXPECT_FALSE(coarse->refused || fine->refused);
-  ASSERT_EQ(coarse->errors.size(), study_->scenarios().size());
+  ASSERT_EQ(coarse->errors.size(), study.scenarios().size());
   for (std::size_t s = 0; s < coarse->errors.size(); ++s) {
     const CatheterScenarioError& a = coarse->errors[s];
     const CatheterScenarioError& b = fine->errors[s];
@@ -194,10 +189,9 @@ TEST_F(CatheterTradeTest, ErrorsFallWithTheParticleCountAndCostsAreOrdered) {
   // b scaled to keep b/m: the definition's N = 11 keeps the definition's b.
   EXPECT_NEAR(fine->damping_n_s_per_m, 5.0e-4, 1e-9);
   EXPECT_NEAR(coarse->damping_n_s_per_m, 5.0e-4 * 11.0 / 6.0, 1e-9);
-}
 
-TEST_F(CatheterTradeTest, OverBudgetParticleCountIsReportedRefusedNotFailed) {
-  const CatheterTradePoint* refused = &shared_->refused;
+  // Over the budget: refused with Catheter::create's message, not measured, not an error.
+  const CatheterTradePoint* refused = &refused_point;
   EXPECT_TRUE(refused->refused);
   EXPECT_FALSE(refused->measured);
   EXPECT_GT(refused->substeps_per_period, 64U);
@@ -206,22 +200,20 @@ TEST_F(CatheterTradeTest, OverBudgetParticleCountIsReportedRefusedNotFailed) {
   EXPECT_EQ(refused->cost.median_ns, 0.0);
 
   // Beyond the budget on request: measured, and nearer the reference than N = 11.
-  const CatheterTradePoint* beyond = &shared_->beyond;
-  const CatheterTradePoint* within = &shared_->fine;
+  const CatheterTradePoint* beyond = &beyond_point;
+  const CatheterTradePoint* within = fine;
   EXPECT_TRUE(beyond->refused);
   EXPECT_TRUE(beyond->measured);
   EXPECT_LT(beyond->worst_error, within->worst_error);
   EXPECT_GT(beyond->cost.haptic_median_ns, within->cost.haptic_median_ns);
-}
 
-TEST_F(CatheterTradeTest, PlainReferenceCheckMeasuresTheExtrapolation) {
   // The plain N_ref run against the extrapolated reference is its first-order error, the same
   // as N_ref against N_ref/2, so it is non-zero and below the error of N_ref/2 = 11 itself.
-  ASSERT_EQ(study_->reference_check().size(), study_->scenarios().size());
-  const CatheterTradePoint* half = &shared_->fine;
+  ASSERT_EQ(study.reference_check().size(), study.scenarios().size());
+  const CatheterTradePoint* half = fine;
   for (std::size_t s = 0; s < half->errors.size(); ++s) {
-    EXPECT_GT(study_->reference_check()[s].error, 0.0);
-    EXPECT_LT(study_->reference_check()[s].error, half->errors[s].error);
+    EXPECT_GT(study.reference_check()[s].error, 0.0);
+    EXPECT_LT(study.reference_check()[s].error, half->errors[s].error);
   }
 }
 

@@ -79,7 +79,7 @@ struct CatheterScenario {
   CatheterScenarioKind kind = CatheterScenarioKind::insertion;
   double duration_s = 1.5;  // a whole number of haptic periods
   // insertion
-  double grasp_arc_length_m = 0.0;  // the front held particle (nearest particle to it)
+  double grasp_arc_length_m = 0.0;  // the front held particle (the nearest); the one behind too
   double push_m = 0.0;              // how far the grasp advances along +x …
   double push_time_s = 1.0;         // … on a cosine ramp (zero velocity at both ends), then held
   double wall_angle_deg = 45.0;     // between the rest axis and the wall plane (90 = head-on)
@@ -90,9 +90,10 @@ struct CatheterScenario {
 };
 
 // The defaults for a catheter of length L (every length scales with it): tuning — an
-// insertion grasped at 0.6 L, pushed 0.12 L in 1 s against a wall at 45° whose gap is 0.02 L,
-// held to 1.5 s, and a cantilever loaded to F L²/EI = 2 in 0.5 s, held to 1.5 s; held out — the
-// same insertion against a steeper wall (60°, nearer head-on, the free part nearer buckling).
+// insertion grasped at 0.8 L (as the cbd scene's forceps hold its catheter near the tip),
+// pushed 0.06 L in 1 s against a wall at 45° whose gap is 0.01 L, held to 1.5 s, and a
+// cantilever loaded to F L²/EI = 2 in 0.5 s, held to 1.5 s; held out — the same insertion
+// against a steeper wall (60°, nearer head-on, the free part nearer buckling).
 std::vector<CatheterScenario> default_catheter_scenarios(double length_m);
 
 // The rigid wall's contact (the definition's [contact] table; defaults as docs/config.md).
