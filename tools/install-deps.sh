@@ -19,6 +19,7 @@ packages=(
   libgtest-dev libgmock-dev   # unit tests
   libbenchmark-dev       # benchmarks
   rt-tests               # cyclictest, the timing reference
+  gnuplot-nox            # jitter's latency plot (pngcairo terminal, no X)
   clang-format clang-tidy
 )
 
