@@ -42,8 +42,8 @@ int main(int argc, char** argv) {
                                     "Loop period in microseconds, replacing loop.period_us");
   auto* priority_opt = cli.add_option(
       "--priority", priority, "SCHED_FIFO priority (0 = SCHED_OTHER), replacing loop.priority");
-  auto* cpu_opt =
-      cli.add_option("--cpu", cpu, "CPU to pin the haptic thread to (-1 = none), replacing loop.cpu");
+  auto* cpu_opt = cli.add_option("--cpu", cpu,
+                                 "CPU to pin the haptic thread to (-1 = none), replacing loop.cpu");
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
   cli.footer(

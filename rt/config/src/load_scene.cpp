@@ -363,10 +363,9 @@ core::Expected<void> apply_loop_overrides(LoopConfig& loop, const LoopOverrides&
   const auto check = [](std::string_view key, std::int64_t value, IntRange range,
                         std::string_view unit) -> core::Expected<void> {
     if (value >= range.min && value <= range.max) return {};
-    return core::make_error("override of loop." + std::string(key) + " = " +
-                            std::to_string(value) + " is out of range: expected " +
-                            std::to_string(range.min) + " to " + std::to_string(range.max) +
-                            " (" + std::string(unit) + ")");
+    return core::make_error("override of loop." + std::string(key) + " = " + std::to_string(value) +
+                            " is out of range: expected " + std::to_string(range.min) + " to " +
+                            std::to_string(range.max) + " (" + std::string(unit) + ")");
   };
   if (overrides.period_us) {
     if (auto ok = check("period_us", *overrides.period_us, kPeriodRangeUs, "microseconds"); !ok) {

@@ -443,9 +443,9 @@ TEST(LoopOverrides, ReplaceOnlyTheGivenKeys) {
   EXPECT_EQ(loop.priority, 0);
   EXPECT_EQ(loop.cpu, -1);
   // The range ends are the file's: [50, 100000] us, [0, 99], [-1, 1023].
-  EXPECT_TRUE(apply_loop_overrides(loop, LoopOverrides{.period_us = 50, .priority = 99,
-                                                       .cpu = 1023})
-                  .has_value());
+  EXPECT_TRUE(
+      apply_loop_overrides(loop, LoopOverrides{.period_us = 50, .priority = 99, .cpu = 1023})
+          .has_value());
   EXPECT_EQ(loop.period_ns, 50'000);
 }
 

@@ -60,10 +60,10 @@ TEST(CyclictestHistogram, ParsesCountsSummaryAndPercentiles) {
   EXPECT_EQ(distribution.bins()[1].lower_ns, 16'000);
   EXPECT_EQ(distribution.bins()[1].upper_ns, 17'000);
   const PercentileSet us = distribution.percentiles();
-  EXPECT_DOUBLE_EQ(us.p50_us, 17.0);    // rank 5: 1 + 5 samples up to bin 16
-  EXPECT_DOUBLE_EQ(us.p90_us, 18.0);    // rank 9: bin 17
-  EXPECT_DOUBLE_EQ(us.p99_us, 21.0);    // rank 10: bin 20
-  EXPECT_DOUBLE_EQ(us.max_us, 21.0);    // the 20 us sample lies in [20, 21)
+  EXPECT_DOUBLE_EQ(us.p50_us, 17.0);  // rank 5: 1 + 5 samples up to bin 16
+  EXPECT_DOUBLE_EQ(us.p90_us, 18.0);  // rank 9: bin 17
+  EXPECT_DOUBLE_EQ(us.p99_us, 21.0);  // rank 10: bin 20
+  EXPECT_DOUBLE_EQ(us.max_us, 21.0);  // the 20 us sample lies in [20, 21)
   EXPECT_EQ(distribution.count_at_or_above(17'000), 4U);
 }
 
@@ -83,8 +83,8 @@ TEST(CyclictestHistogram, OverflowsBecomeOneBinUpToTheMax) {
   EXPECT_EQ(distribution.bins().back().upper_ns, 8'006'000);
   EXPECT_EQ(distribution.bins().back().count, 2U);
   const PercentileSet us = distribution.percentiles();
-  EXPECT_DOUBLE_EQ(us.p99_us, 6.0);        // rank 990 is in bin 5
-  EXPECT_DOUBLE_EQ(us.p99_9_us, 8006.0);   // rank 999 is an overflow: bounded by the max
+  EXPECT_DOUBLE_EQ(us.p99_us, 6.0);       // rank 990 is in bin 5
+  EXPECT_DOUBLE_EQ(us.p99_9_us, 8006.0);  // rank 999 is an overflow: bounded by the max
   EXPECT_DOUBLE_EQ(us.max_us, 8006.0);
 }
 
@@ -154,9 +154,9 @@ TEST(CyclictestCommand, MirrorsTheLoopsSettings) {
   rt.loops = 60000;
   rt.histogram_limit_us = 20000;
   rt.histogram_file = "/tmp/h.txt";
-  const std::vector<std::string> expected{"cyclictest", "-q",  "-t1",           "-i100",
-                                          "--policy=fifo", "-p80", "-a1", "-m", "--latency=0",
-                                          "-l60000", "-h20000", "--histfile=/tmp/h.txt"};
+  const std::vector<std::string> expected{
+      "cyclictest", "-q", "-t1",         "-i100",   "--policy=fifo", "-p80",
+      "-a1",        "-m", "--latency=0", "-l60000", "-h20000",       "--histfile=/tmp/h.txt"};
   EXPECT_EQ(cyclictest_arguments(rt), expected);
 
   CyclictestSettings plain = rt;
@@ -174,8 +174,9 @@ TEST(CyclictestCommand, MirrorsTheLoopsSettings) {
   EXPECT_TRUE(has("--laptop"));  // no PM QoS request, as the loop makes none
   EXPECT_FALSE(has("-m"));
   EXPECT_FALSE(has("-a1"));
-  EXPECT_FALSE(std::any_of(args.begin(), args.end(),
-                           [](const std::string& a) { return a.rfind("-l", 0) == 0 && a != "--laptop"; }));
+  EXPECT_FALSE(std::any_of(args.begin(), args.end(), [](const std::string& a) {
+    return a.rfind("-l", 0) == 0 && a != "--laptop";
+  }));
 }
 
 }  // namespace

@@ -23,7 +23,8 @@ TEST(Acceptance, RatioAndOverrunLimits) {
   EXPECT_FALSE(verdict->passed);
   ASSERT_EQ(verdict->checks.size(), 2U);
   ASSERT_EQ(verdict->violations.size(), 1U);
-  EXPECT_NE(verdict->violations[0].find("p99.9 trainer/cyclictest 1.600 > 1.500"), std::string::npos)
+  EXPECT_NE(verdict->violations[0].find("p99.9 trainer/cyclictest 1.600 > 1.500"),
+            std::string::npos)
       << verdict->violations[0];
 
   criteria.ratio_at = {"p50", "p99"};
@@ -175,8 +176,8 @@ TEST(Plot, DataHoldsDensityAndAFallingCcdfPerSide) {
   }
   EXPECT_DOUBLE_EQ(sets[3].back().first, 901.0);
 
-  const std::string script = plot_script(c.trainer_wake, c.cyclictest,
-                                         PlotLabels{"a \"title\"\nline two", "trainer", "cyclictest"});
+  const std::string script = plot_script(
+      c.trainer_wake, c.cyclictest, PlotLabels{"a \"title\"\nline two", "trainer", "cyclictest"});
   EXPECT_NE(script.find("set output 'jitter.png'"), std::string::npos);
   EXPECT_NE(script.find("\"a \\\"title\\\"\\nline two\""), std::string::npos) << script;
   EXPECT_NE(script.find("index 3"), std::string::npos);

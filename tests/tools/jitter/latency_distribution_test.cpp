@@ -57,11 +57,11 @@ TEST(LatencyDistribution, PercentilesAreUpperEdgesClampedToTheLargestSample) {
       150'000);
   ASSERT_TRUE(distribution) << distribution.error().message;
   EXPECT_EQ(distribution->count(), 100U);
-  EXPECT_EQ(distribution->percentile_ns(0.0), 11'000);   // rank 1
-  EXPECT_EQ(distribution->percentile_ns(0.50), 11'000);  // rank 50
-  EXPECT_EQ(distribution->percentile_ns(0.51), 22'000);  // rank 51
-  EXPECT_EQ(distribution->percentile_ns(0.90), 22'000);  // rank 90
-  EXPECT_EQ(distribution->percentile_ns(0.99), 40'000);  // rank 99
+  EXPECT_EQ(distribution->percentile_ns(0.0), 11'000);     // rank 1
+  EXPECT_EQ(distribution->percentile_ns(0.50), 11'000);    // rank 50
+  EXPECT_EQ(distribution->percentile_ns(0.51), 22'000);    // rank 51
+  EXPECT_EQ(distribution->percentile_ns(0.90), 22'000);    // rank 90
+  EXPECT_EQ(distribution->percentile_ns(0.99), 40'000);    // rank 99
   EXPECT_EQ(distribution->percentile_ns(0.999), 150'000);  // rank 100: clamped to the max
   const PercentileSet us = distribution->percentiles();
   EXPECT_DOUBLE_EQ(us.p50_us, 11.0);
@@ -70,8 +70,8 @@ TEST(LatencyDistribution, PercentilesAreUpperEdgesClampedToTheLargestSample) {
   EXPECT_EQ(distribution->count_at_or_above(20'000), 50U);
   EXPECT_EQ(distribution->count_at_or_above(100'000), 1U);
   // Midpoints: (10.5 * 50 + 21 * 40 + 35 * 9 + 150 * 1) / 100 us.
-  EXPECT_NEAR(distribution->midpoint_mean_ns(), (10'500.0 * 50 + 21'000.0 * 40 + 35'000.0 * 9 +
-                                                 150'000.0) / 100.0, 1e-6);
+  EXPECT_NEAR(distribution->midpoint_mean_ns(),
+              (10'500.0 * 50 + 21'000.0 * 40 + 35'000.0 * 9 + 150'000.0) / 100.0, 1e-6);
 
   const LatencyDistribution empty;
   EXPECT_EQ(empty.percentile_ns(0.5), 0);

@@ -143,7 +143,8 @@ void ChildProcess::interrupt() const {
 std::size_t ChildProcess::thread_count() const {
   std::error_code error;
   std::size_t threads = 0;
-  for (std::filesystem::directory_iterator it("/proc/" + std::to_string(pid_) + "/task", error), end;
+  for (std::filesystem::directory_iterator it("/proc/" + std::to_string(pid_) + "/task", error),
+       end;
        !error && it != end; it.increment(error)) {
     ++threads;
   }

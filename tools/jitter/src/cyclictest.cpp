@@ -148,11 +148,11 @@ core::Expected<CyclictestHistogram> parse_cyclictest_histogram(std::string_view 
           ? histogram.max_us >= histogram.limit_us()
           : highest > 0 && static_cast<std::int64_t>(highest - 1) == histogram.max_us;
   if (!max_consistent) {
-    return core::make_error(std::string(source) + ": '# Max Latencies: " +
-                            std::to_string(histogram.max_us) + "' disagrees with the bins (" +
-                            std::to_string(histogram.overflows) + " overflows, highest bin " +
-                            (highest > 0 ? std::to_string(highest - 1) : std::string("none")) +
-                            ")");
+    return core::make_error(
+        std::string(source) + ": '# Max Latencies: " + std::to_string(histogram.max_us) +
+        "' disagrees with the bins (" + std::to_string(histogram.overflows) +
+        " overflows, highest bin " +
+        (highest > 0 ? std::to_string(highest - 1) : std::string("none")) + ")");
   }
   return histogram;
 }

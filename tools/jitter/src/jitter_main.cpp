@@ -43,8 +43,9 @@ int main(int argc, char** argv) {
   // interrupted measurement still stops cyclictest and writes what it has.
   trainer::loop::StopSignals signals;
 
-  CLI::App cli{"jitter: the trainer's wake-up latency under a scene's real workload, side by "
-               "side with cyclictest at the same period, priority and CPU"};
+  CLI::App cli{
+      "jitter: the trainer's wake-up latency under a scene's real workload, side by "
+      "side with cyclictest at the same period, priority and CPU"};
   JitterOptions options;
   AcceptanceCriteria criteria;
   std::string mode = "sequential";
@@ -64,11 +65,13 @@ int main(int argc, char** argv) {
                  "Duration of each side (sequential) or of both together (alongside)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  auto* period_opt =
-      cli.add_option("--period-us", period_us, "Loop and cyclictest period (default: loop.period_us)");
-  auto* priority_opt = cli.add_option(
-      "--priority", priority, "SCHED_FIFO priority of both, 0 = SCHED_OTHER (default: loop.priority)");
-  auto* cpu_opt = cli.add_option("--cpu", cpu, "CPU of the loop, -1 = not pinned (default: loop.cpu)");
+  auto* period_opt = cli.add_option("--period-us", period_us,
+                                    "Loop and cyclictest period (default: loop.period_us)");
+  auto* priority_opt =
+      cli.add_option("--priority", priority,
+                     "SCHED_FIFO priority of both, 0 = SCHED_OTHER (default: loop.priority)");
+  auto* cpu_opt =
+      cli.add_option("--cpu", cpu, "CPU of the loop, -1 = not pinned (default: loop.cpu)");
   cli.add_option("--mode", mode,
                  "sequential: the trainer, then cyclictest on the same CPU; alongside: both at "
                  "once, cyclictest on another CPU")
@@ -78,8 +81,7 @@ int main(int argc, char** argv) {
       "--cyclictest-cpu", cyclictest_cpu,
       "CPU of cyclictest, -1 = not pinned (default: the loop's CPU when sequential, another "
       "CPU when alongside)");
-  cli.add_option("--out", options.out_dir, "Output directory")
-      ->capture_default_str();
+  cli.add_option("--out", options.out_dir, "Output directory")->capture_default_str();
   auto* max_ratio_opt = cli.add_option(
       "--max-ratio", max_ratio,
       "Fail (exit 4) when a trainer/cyclictest wake-up latency ratio at --ratio-at exceeds this");
@@ -87,15 +89,13 @@ int main(int argc, char** argv) {
   cli.add_option("--ratio-at", ratio_at,
                  "Comma-separated percentiles --max-ratio checks: p50, p90, p99, p99.9, max")
       ->capture_default_str();
-  auto* max_overruns_opt = cli.add_option(
-      "--max-overruns", max_overruns, "Fail (exit 4) when the trainer overruns more often");
+  auto* max_overruns_opt = cli.add_option("--max-overruns", max_overruns,
+                                          "Fail (exit 4) when the trainer overruns more often");
   cli.add_option("--histogram-us", options.histogram_limit_us,
                  "cyclictest histogram range in us (default: max(20000, 2 periods))")
       ->check(CLI::PositiveNumber);
-  cli.add_option("--cyclictest", options.cyclictest, "cyclictest program")
-      ->capture_default_str();
-  cli.add_option("--gnuplot", gnuplot, "gnuplot program")
-      ->capture_default_str();
+  cli.add_option("--cyclictest", options.cyclictest, "cyclictest program")->capture_default_str();
+  cli.add_option("--gnuplot", gnuplot, "gnuplot program")->capture_default_str();
   cli.footer(
       "A scene whose trainee script ends the run (cbd) is run back to back until the duration "
       "is covered; the last run is cut at it.\nExit status: 0 measured (and within the "
@@ -139,14 +139,13 @@ int main(int argc, char** argv) {
 
   const EffectiveSettings& s = measurement->settings;
   PlotLabels labels;
-  labels.title = "scene '" + s.scene_name + "', period " +
-                 us_text(static_cast<double>(s.period_ns) / 1000.0) + " µs, " +
-                 (s.priority > 0 ? "SCHED_FIFO " + std::to_string(s.priority) : "SCHED_OTHER") +
-                 ", cpu " + std::to_string(s.cpu) + " / " + std::to_string(s.cyclictest_cpu) +
-                 ", " + to_string(measurement->mode) + "\n" + "kernel " +
-                 measurement->kernel_release +
-                 (measurement->preempt_rt ? " (PREEMPT_RT)" : " (not PREEMPT_RT)") + ", " +
-                 measurement->started_utc;
+  labels.title =
+      "scene '" + s.scene_name + "', period " + us_text(static_cast<double>(s.period_ns) / 1000.0) +
+      " µs, " + (s.priority > 0 ? "SCHED_FIFO " + std::to_string(s.priority) : "SCHED_OTHER") +
+      ", cpu " + std::to_string(s.cpu) + " / " + std::to_string(s.cyclictest_cpu) + ", " +
+      to_string(measurement->mode) + "\n" + "kernel " + measurement->kernel_release +
+      (measurement->preempt_rt ? " (PREEMPT_RT)" : " (not PREEMPT_RT)") + ", " +
+      measurement->started_utc;
   labels.trainer_key = "trainer (" + std::to_string(comparison.trainer_wake.count()) +
                        " cycles): p99 " + us_text(comparison.trainer_wake_us.p99_us) +
                        " µs, p99.9 " + us_text(comparison.trainer_wake_us.p99_9_us) + " µs";

@@ -13,13 +13,16 @@ namespace {
 
 constexpr double kNanosecondsPerMicrosecond = 1000.0;
 
-double to_us(std::int64_t ns) { return static_cast<double>(ns) / kNanosecondsPerMicrosecond; }
+double to_us(std::int64_t ns) {
+  return static_cast<double>(ns) / kNanosecondsPerMicrosecond;
+}
 
 void append_density(std::string& out, const LatencyDistribution& distribution) {
   char line[96];
   for (const LatencyBin& bin : distribution.bins()) {
     const double width_us = to_us(bin.upper_ns - bin.lower_ns);
-    std::snprintf(line, sizeof line, "%.4f %.6g\n", 0.5 * (to_us(bin.lower_ns) + to_us(bin.upper_ns)),
+    std::snprintf(line, sizeof line, "%.4f %.6g\n",
+                  0.5 * (to_us(bin.lower_ns) + to_us(bin.upper_ns)),
                   static_cast<double>(bin.count) / width_us);
     out += line;
   }
@@ -67,7 +70,8 @@ std::string plot_data(const LatencyDistribution& trainer, const LatencyDistribut
   append_density(out, cyclictest);
   out += "\n\n# index 2: trainer: bin lower edge (us), fraction of wake-ups in that bin or above\n";
   append_ccdf(out, trainer);
-  out += "\n\n# index 3: cyclictest: bin lower edge (us), fraction of wake-ups in that bin or above\n";
+  out +=
+      "\n\n# index 3: cyclictest: bin lower edge (us), fraction of wake-ups in that bin or above\n";
   append_ccdf(out, cyclictest);
   return out;
 }
@@ -81,7 +85,8 @@ std::string plot_script(const LatencyDistribution& trainer, const LatencyDistrib
   for (const LatencyDistribution* distribution : {&trainer, &cyclictest}) {
     if (distribution->count() == 0) continue;
     const LatencyBin& first = distribution->bins().front();
-    low_us = std::min(low_us, first.lower_ns > 0 ? to_us(first.lower_ns) : 0.5 * to_us(first.upper_ns));
+    low_us =
+        std::min(low_us, first.lower_ns > 0 ? to_us(first.lower_ns) : 0.5 * to_us(first.upper_ns));
     high_us = std::max(high_us, to_us(distribution->largest_ns()));
     most_samples = std::max(most_samples, distribution->count());
   }

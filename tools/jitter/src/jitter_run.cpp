@@ -119,8 +119,8 @@ core::Expected<EffectiveSettings> effective_settings(const JitterOptions& option
   } else if (options.mode == Mode::sequential) {
     settings.cyclictest_cpu = settings.cpu;
   } else {
-    const auto other = std::find_if(cpus.begin(), cpus.end(),
-                                    [&](int cpu) { return cpu != settings.cpu; });
+    const auto other =
+        std::find_if(cpus.begin(), cpus.end(), [&](int cpu) { return cpu != settings.cpu; });
     if (settings.cpu < 0) {
       warnings.push_back(
           "alongside with an unpinned loop: cyclictest is not pinned either, both may share a "
@@ -189,8 +189,8 @@ core::Expected<TrainerSide> run_trainer_side(const JitterOptions& options,
     record.longest_overrun_streak = result->loop.longest_overrun_streak;
     record.latched_faults = result->latched_faults;
     record.first_fault = result->first_fault;
-    record.report_file = options.out_dir / ("trainer_run_" + std::to_string(side.runs.size() + 1) +
-                                            ".json");
+    record.report_file =
+        options.out_dir / ("trainer_run_" + std::to_string(side.runs.size() + 1) + ".json");
     std::ofstream report(record.report_file);
     report << app::report_json(*result).dump(2) << '\n';
     if (!report) return core::make_error("cannot write " + record.report_file.string());
@@ -246,13 +246,13 @@ int wait_for_cyclictest(ChildProcess& child, loop::StopSignals& signals, bool& i
 core::Expected<void> finish_cyclictest(CyclictestSide& side, int exit_status) {
   side.exit_status = exit_status;
   if (exit_status != 0) {
-    return core::make_error("cyclictest exited with status " + std::to_string(exit_status) +
-                            " (" + side.output_file.string() + "):\n" + tail_of(side.output_file) +
+    return core::make_error("cyclictest exited with status " + std::to_string(exit_status) + " (" +
+                            side.output_file.string() + "):\n" + tail_of(side.output_file) +
                             "\ncyclictest needs root, or an RLIMIT_RTPRIO above 0 and the "
                             "memlock limit for -m (e.g. the 'realtime' group in limits.conf)");
   }
-  auto parsed = parse_cyclictest_histogram(read_text(side.histogram_file),
-                                           side.histogram_file.string());
+  auto parsed =
+      parse_cyclictest_histogram(read_text(side.histogram_file), side.histogram_file.string());
   if (!parsed) return std::move(parsed).error();
   side.histogram = std::move(*parsed);
   return {};
@@ -297,13 +297,14 @@ core::Expected<JitterMeasurement> measure(const JitterOptions& options,
   measurement.load_average_start = load_average();
 
   CyclictestSide& cyclictest = measurement.cyclictest;
-  cyclictest.histogram_file = std::filesystem::absolute(options.out_dir / "cyclictest_histogram.txt");
+  cyclictest.histogram_file =
+      std::filesystem::absolute(options.out_dir / "cyclictest_histogram.txt");
   cyclictest.output_file = std::filesystem::absolute(options.out_dir / "cyclictest_output.txt");
   std::filesystem::remove(cyclictest.histogram_file, error);
 
   if (options.mode == Mode::alongside) {
-    cyclictest.arguments = cyclictest_arguments(
-        cyclictest_settings(options, *settings, 0, cyclictest.histogram_file));
+    cyclictest.arguments =
+        cyclictest_arguments(cyclictest_settings(options, *settings, 0, cyclictest.histogram_file));
     auto child = ChildProcess::start(cyclictest.arguments, cyclictest.output_file);
     if (!child) return std::move(child).error();
     // Measuring once its timer thread exists (main thread + one measurement thread).
@@ -339,7 +340,8 @@ core::Expected<JitterMeasurement> measure(const JitterOptions& options,
     if (measurement.trainer.stopped_by_signal || measurement.trainer.cycles == 0) {
       return core::make_error(
           "stopped by a signal during the trainer's runs, before cyclictest ran: nothing to "
-          "compare (each finished run's report is in " + options.out_dir.string() + ")");
+          "compare (each finished run's report is in " +
+          options.out_dir.string() + ")");
     }
     cyclictest.arguments = cyclictest_arguments(cyclictest_settings(
         options, *settings, measurement.trainer.cycles, cyclictest.histogram_file));
@@ -350,9 +352,8 @@ core::Expected<JitterMeasurement> measure(const JitterOptions& options,
       return std::move(finished).error();
     }
   }
-  measurement.stopped_by_signal =
-      measurement.trainer.stopped_by_signal ||
-      (options.mode == Mode::sequential && cyclictest.interrupted);
+  measurement.stopped_by_signal = measurement.trainer.stopped_by_signal ||
+                                  (options.mode == Mode::sequential && cyclictest.interrupted);
   measurement.load_average_end = load_average();
 
   if (measurement.stopped_by_signal) {
@@ -365,10 +366,10 @@ core::Expected<JitterMeasurement> measure(const JitterOptions& options,
         "outputs, so the rest of that run is not the scene's full workload");
   }
   if (cyclictest.histogram.overflows > 0) {
-    measurement.warnings.push_back(
-        "cyclictest: " + std::to_string(cyclictest.histogram.overflows) +
-        " samples above its histogram limit of " + std::to_string(settings->histogram_limit_us) +
-        " us; a percentile falling among them is reported as its max");
+    measurement.warnings.push_back("cyclictest: " + std::to_string(cyclictest.histogram.overflows) +
+                                   " samples above its histogram limit of " +
+                                   std::to_string(settings->histogram_limit_us) +
+                                   " us; a percentile falling among them is reported as its max");
   }
   if (!measurement.preempt_rt) {
     measurement.warnings.push_back(

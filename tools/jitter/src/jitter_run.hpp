@@ -39,8 +39,8 @@ const char* to_string(Mode mode) noexcept;
 
 struct JitterOptions {
   std::filesystem::path scene_file;
-  double seconds = 60.0;                  // per side (sequential) or together (alongside)
-  config::LoopOverrides loop_overrides;   // period, priority, CPU over the scene's [loop]
+  double seconds = 60.0;                 // per side (sequential) or together (alongside)
+  config::LoopOverrides loop_overrides;  // period, priority, CPU over the scene's [loop]
   Mode mode = Mode::sequential;
   std::optional<int> cyclictest_cpu;      // unset: see mode; -1 = not pinned
   std::string cyclictest = "cyclictest";  // program name or path
@@ -84,7 +84,7 @@ struct TrainerSide {
   double loop_time_s = 0.0;     // sum of the runs' wall times
   double elapsed_time_s = 0.0;  // first run's start to last run's end, setup between included
   bool stopped_by_signal = false;
-  loop::RtReport rt;            // as the first run obtained it; warnings of every run, once each
+  loop::RtReport rt;  // as the first run obtained it; warnings of every run, once each
   // Merged over the runs; heap-held (each is about 10 KiB of bins).
   std::unique_ptr<core::LatencyHistogram> wake_latency = std::make_unique<core::LatencyHistogram>();
   std::unique_ptr<core::LatencyHistogram> step_time = std::make_unique<core::LatencyHistogram>();
@@ -105,7 +105,7 @@ struct JitterMeasurement {
   double requested_seconds = 0.0;
   TrainerSide trainer;
   CyclictestSide cyclictest;
-  std::string started_utc;               // ISO 8601
+  std::string started_utc;                 // ISO 8601
   std::vector<double> load_average_start;  // 1, 5, 15 min (/proc/loadavg)
   std::vector<double> load_average_end;
   std::string kernel_release;
@@ -118,7 +118,6 @@ struct JitterMeasurement {
 
 // Runs both sides. Errors: scene or override refused, CPU not available, cyclictest missing,
 // failing or writing an unreadable histogram, output directory not writable.
-core::Expected<JitterMeasurement> measure(const JitterOptions& options,
-                                          loop::StopSignals& signals);
+core::Expected<JitterMeasurement> measure(const JitterOptions& options, loop::StopSignals& signals);
 
 }  // namespace trainer::tools::jitter

@@ -11,12 +11,18 @@ namespace {
 constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
 
 // Microseconds to 3 decimals (ns resolution) in the JSON, so no float noise is printed.
-double rounded_us(double value_us) { return std::round(value_us * 1000.0) / 1000.0; }
-double rounded_ratio(double ratio) { return std::round(ratio * 1000.0) / 1000.0; }
+double rounded_us(double value_us) {
+  return std::round(value_us * 1000.0) / 1000.0;
+}
+double rounded_ratio(double ratio) {
+  return std::round(ratio * 1000.0) / 1000.0;
+}
 
 nlohmann::json percentiles_json(const PercentileSet& set, double (*round)(double)) {
-  return {{"p50", round(set.p50_us)},     {"p90", round(set.p90_us)},
-          {"p99", round(set.p99_us)},     {"p99_9", round(set.p99_9_us)},
+  return {{"p50", round(set.p50_us)},
+          {"p90", round(set.p90_us)},
+          {"p99", round(set.p99_us)},
+          {"p99_9", round(set.p99_9_us)},
           {"max", round(set.max_us)}};
 }
 
@@ -36,9 +42,9 @@ std::string format(const char* pattern, double value) {
 }
 
 std::string row(const PercentileSet& set, const char* pattern) {
-  return "p50 " + format(pattern, set.p50_us) + "  p90 " + format(pattern, set.p90_us) +
-         "  p99 " + format(pattern, set.p99_us) + "  p99.9 " + format(pattern, set.p99_9_us) +
-         "  max " + format(pattern, set.max_us);
+  return "p50 " + format(pattern, set.p50_us) + "  p90 " + format(pattern, set.p90_us) + "  p99 " +
+         format(pattern, set.p99_us) + "  p99.9 " + format(pattern, set.p99_9_us) + "  max " +
+         format(pattern, set.max_us);
 }
 
 }  // namespace
@@ -165,20 +171,19 @@ nlohmann::json summary_json(const JitterMeasurement& m, const Comparison& c,
   nlohmann::json cyclictest_latency =
       latency_json(c.cyclictest, c.cyclictest_us, c.cyclictest.midpoint_mean_ns() / 1000.0,
                    static_cast<double>(h.min_us));
-  json["cyclictest"] = {
-      {"command", command},
-      {"exit_status", m.cyclictest.exit_status},
-      {"stopped_with_sigint", m.cyclictest.interrupted},
-      {"loops", h.samples()},
-      {"latency_us", cyclictest_latency},
-      {"reported_min_us", h.min_us},
-      {"reported_avg_us", h.avg_us},
-      {"reported_max_us", h.max_us},
-      {"histogram_overflows", h.overflows},
-      {"late_by_a_period", c.cyclictest_late_by_a_period},
-      {"histogram", "cyclictest_latency.csv"},
-      {"raw_histogram", m.cyclictest.histogram_file.filename().string()},
-      {"raw_output", m.cyclictest.output_file.filename().string()}};
+  json["cyclictest"] = {{"command", command},
+                        {"exit_status", m.cyclictest.exit_status},
+                        {"stopped_with_sigint", m.cyclictest.interrupted},
+                        {"loops", h.samples()},
+                        {"latency_us", cyclictest_latency},
+                        {"reported_min_us", h.min_us},
+                        {"reported_avg_us", h.avg_us},
+                        {"reported_max_us", h.max_us},
+                        {"histogram_overflows", h.overflows},
+                        {"late_by_a_period", c.cyclictest_late_by_a_period},
+                        {"histogram", "cyclictest_latency.csv"},
+                        {"raw_histogram", m.cyclictest.histogram_file.filename().string()},
+                        {"raw_output", m.cyclictest.output_file.filename().string()}};
   json["ratio_trainer_over_cyclictest"] = percentiles_json(c.ratios, rounded_ratio);
   json["acceptance"] = {{"evaluated", verdict.evaluated},
                         {"passed", verdict.passed},
@@ -208,13 +213,13 @@ std::string summary_text(const JitterMeasurement& m, const Comparison& c,
       << (s.cyclictest_cpu < 0 ? std::string("any") : std::to_string(s.cyclictest_cpu)) << ", "
       << to_string(m.mode) << "\n";
   out << "  trainer:    " << t.cycles << " cycles in " << t.runs.size() << " run(s), "
-      << format("%.1f", t.loop_time_s) << " s of loop ("
-      << format("%.1f", t.elapsed_time_s) << " s with setup between runs)\n";
+      << format("%.1f", t.loop_time_s) << " s of loop (" << format("%.1f", t.elapsed_time_s)
+      << " s with setup between runs)\n";
   out << "  wake-up latency, us (bin upper bounds):\n";
   out << "    trainer     " << row(c.trainer_wake_us, "%.1f") << "\n";
-  out << "    cyclictest  " << row(c.cyclictest_us, "%.0f") << "  (" << m.cyclictest.histogram.samples()
-      << " loops, " << m.cyclictest.histogram.overflows << " above "
-      << s.histogram_limit_us << " us)\n";
+  out << "    cyclictest  " << row(c.cyclictest_us, "%.0f") << "  ("
+      << m.cyclictest.histogram.samples() << " loops, " << m.cyclictest.histogram.overflows
+      << " above " << s.histogram_limit_us << " us)\n";
   out << "    ratio       " << row(c.ratios, "%.2f") << "\n";
   out << "  trainer step time, us: " << row(c.trainer_step_us, "%.1f") << "\n";
   out << "  trainer overruns " << t.overruns << " (longest streak " << t.longest_overrun_streak

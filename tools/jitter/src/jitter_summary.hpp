@@ -16,13 +16,13 @@
 namespace trainer::tools::jitter {
 
 struct AcceptanceCriteria {
-  std::optional<double> max_ratio;                       // trainer / cyclictest, each listed
-  std::vector<std::string> ratio_at{"p99", "p99.9"};     // percentile names
-  std::optional<std::uint64_t> max_overruns;             // trainer overruns over all runs
+  std::optional<double> max_ratio;                    // trainer / cyclictest, each listed
+  std::vector<std::string> ratio_at{"p99", "p99.9"};  // percentile names
+  std::optional<std::uint64_t> max_overruns;          // trainer overruns over all runs
 };
 
 struct AcceptanceVerdict {
-  bool evaluated = false;               // at least one criterion was given
+  bool evaluated = false;  // at least one criterion was given
   bool passed = true;
   std::vector<std::string> checks;      // every check made, with its numbers and result
   std::vector<std::string> violations;  // the failed ones
@@ -41,7 +41,7 @@ struct Comparison {
   PercentileSet trainer_wake_us;
   PercentileSet trainer_step_us;
   PercentileSet cyclictest_us;
-  PercentileSet ratios;  // trainer / cyclictest
+  PercentileSet ratios;                           // trainer / cyclictest
   std::uint64_t cyclictest_late_by_a_period = 0;  // samples with latency >= the period
 };
 

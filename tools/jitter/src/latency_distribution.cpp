@@ -10,7 +10,9 @@ namespace {
 
 constexpr double kNanosecondsPerMicrosecond = 1000.0;
 
-double to_us(std::int64_t ns) { return static_cast<double>(ns) / kNanosecondsPerMicrosecond; }
+double to_us(std::int64_t ns) {
+  return static_cast<double>(ns) / kNanosecondsPerMicrosecond;
+}
 
 std::string describe(std::size_t index, const LatencyBin& bin) {
   return "bin " + std::to_string(index) + " [" + std::to_string(bin.lower_ns) + ", " +
@@ -52,7 +54,8 @@ LatencyDistribution LatencyDistribution::from_histogram(const core::LatencyHisto
     LatencyBin bin{core::LatencyHistogram::bin_lower_ns(i), core::LatencyHistogram::bin_upper_ns(i),
                    count};
     // The last bin also holds everything beyond its nominal edge (overflow).
-    if (i == core::LatencyHistogram::kBinCount - 1) bin.upper_ns = std::max(bin.upper_ns, max_ns + 1);
+    if (i == core::LatencyHistogram::kBinCount - 1)
+      bin.upper_ns = std::max(bin.upper_ns, max_ns + 1);
     distribution.bins_.push_back(bin);
     distribution.count_ += count;
   }
@@ -75,8 +78,7 @@ std::int64_t LatencyDistribution::percentile_ns(double fraction) const noexcept 
 
 PercentileSet LatencyDistribution::percentiles() const noexcept {
   return PercentileSet{to_us(percentile_ns(0.50)), to_us(percentile_ns(0.90)),
-                       to_us(percentile_ns(0.99)), to_us(percentile_ns(0.999)),
-                       to_us(largest_ns_)};
+                       to_us(percentile_ns(0.99)), to_us(percentile_ns(0.999)), to_us(largest_ns_)};
 }
 
 std::uint64_t LatencyDistribution::count_at_or_above(std::int64_t threshold_ns) const noexcept {
@@ -109,11 +111,10 @@ std::string LatencyDistribution::to_csv() const {
 
 PercentileSet percentile_ratios(const PercentileSet& trainer, const PercentileSet& cyclictest) {
   const auto ratio = [](double a, double b) { return a > 0.0 && b > 0.0 ? a / b : 0.0; };
-  return PercentileSet{ratio(trainer.p50_us, cyclictest.p50_us),
-                       ratio(trainer.p90_us, cyclictest.p90_us),
-                       ratio(trainer.p99_us, cyclictest.p99_us),
-                       ratio(trainer.p99_9_us, cyclictest.p99_9_us),
-                       ratio(trainer.max_us, cyclictest.max_us)};
+  return PercentileSet{
+      ratio(trainer.p50_us, cyclictest.p50_us), ratio(trainer.p90_us, cyclictest.p90_us),
+      ratio(trainer.p99_us, cyclictest.p99_us), ratio(trainer.p99_9_us, cyclictest.p99_9_us),
+      ratio(trainer.max_us, cyclictest.max_us)};
 }
 
 core::Expected<double> percentile_by_name(const PercentileSet& set, const std::string& name) {
