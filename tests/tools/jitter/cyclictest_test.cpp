@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <string>
+#include <string_view>
 
 namespace trainer::tools::jitter {
 namespace {
@@ -15,7 +16,7 @@ namespace {
 // Bins 0..limit-1 with the given non-zero counts, then the summary lines, as cyclictest -t1
 // -h LIMIT --histfile writes them.
 std::string histogram_file(std::size_t limit, const std::vector<std::pair<std::size_t, int>>& bins,
-                           const std::string& summary) {
+                           std::string_view summary) {
   std::string text = "# Histogram\n";
   char line[32];
   for (std::size_t k = 0; k < limit; ++k) {
@@ -26,10 +27,10 @@ std::string histogram_file(std::size_t limit, const std::vector<std::pair<std::s
     std::snprintf(line, sizeof line, "%06zu %06d\n", k, count);
     text += line;
   }
-  return text + summary;
+  return text.append(summary);
 }
 
-const std::string kSummary10 =
+constexpr std::string_view kSummary10 =
     "# Total: 000000010\n# Min Latencies: 00015\n# Avg Latencies: 00016\n"
     "# Max Latencies: 00020\n# Histogram Overflows: 00000\n"
     "# Histogram Overflow at cycle number:\n# Thread 0:\n";
@@ -122,13 +123,13 @@ TEST(CyclictestHistogram, InconsistentOrIncompleteFilesAreRefused) {
   std::string message = error_of(histogram_file(30, bins, ""));
   EXPECT_NE(message.find("ct.txt: no '# Total:' line"), std::string::npos) << message;
 
-  std::string wrong_total = kSummary10;
+  std::string wrong_total(kSummary10);
   wrong_total.replace(wrong_total.find("000000010"), 9, "000000011");
   message = error_of(histogram_file(30, bins, wrong_total));
   EXPECT_NE(message.find("'# Total: 11' but the histogram lines add up to 10"), std::string::npos)
       << message;
 
-  std::string wrong_max = kSummary10;
+  std::string wrong_max(kSummary10);
   wrong_max.replace(wrong_max.find("Max Latencies: 00020"), 20, "Max Latencies: 00019");
   message = error_of(histogram_file(30, bins, wrong_max));
   EXPECT_NE(message.find("'# Max Latencies: 19' disagrees with the bins"), std::string::npos)

@@ -8,8 +8,8 @@
 
 #include <cerrno>
 #include <cstdlib>
-#include <cstring>
 #include <string_view>
+#include <system_error>
 
 extern char** environ;
 
@@ -47,7 +47,8 @@ std::optional<std::filesystem::path> find_executable(const std::string& name) {
     if (access(name.c_str(), X_OK) == 0) return std::filesystem::path(name);
     return std::nullopt;
   }
-  const char* path_variable = std::getenv("PATH");
+  // jitter never changes its environment, so reading it from any thread is safe.
+  const char* path_variable = std::getenv("PATH");  // NOLINT(concurrency-mt-unsafe)
   std::string_view path = path_variable != nullptr ? path_variable : "/usr/bin:/bin";
   while (true) {
     const std::size_t colon = path.find(':');
@@ -100,7 +101,8 @@ core::Expected<ChildProcess> ChildProcess::start(const std::vector<std::string>&
   const int error = posix_spawn(&pid, executable.c_str(), &setup.actions, &setup.attributes,
                                 arguments.data(), environ);
   if (error != 0) {
-    return core::make_error("cannot start " + executable.string() + ": " + std::strerror(error));
+    return core::make_error("cannot start " + executable.string() + ": " +
+                            std::system_category().message(error));
   }
   return ChildProcess(pid);
 }
