@@ -286,6 +286,15 @@ core::Expected<JitterMeasurement> measure(const JitterOptions& options,
     return core::make_error("cannot create output directory " + options.out_dir.string() + ": " +
                             error.message());
   }
+  // An earlier measurement in the same directory may have had more runs: never mix reports.
+  for (std::filesystem::directory_iterator it(options.out_dir, error), end; !error && it != end;
+       it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    if (name.starts_with("trainer_run_") && name.ends_with(".json")) {
+      std::error_code ignored;
+      std::filesystem::remove(it->path(), ignored);
+    }
+  }
 
   utsname names{};
   if (uname(&names) == 0) {
