@@ -6,7 +6,12 @@
 #                            catheter insertion), report in out/
 #   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
 #                            suite, the ASan+UBSan unit tests and the TSan concurrency tests
-# Extra arguments after `run` go to the trainer (e.g. --scene FILE --seconds 5).
+#   tools/bootstrap.sh jitter
+#                            install, build, build the scene's model images, run the timing
+#                            acceptance test (jitter: the loop with the scene's workload against
+#                            cyclictest; default scene cbd, 60 s each side; docs/timing.md)
+# Extra arguments after `run` go to the trainer (e.g. --scene FILE --seconds 5), after
+# `jitter` to jitter (e.g. --max-ratio 1.5 --mode alongside).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -41,6 +46,21 @@ case "$mode" in
     echo "== trainer ${args[*]}"
     exec build/release/bin/trainer --hal sim "${args[@]}"
     ;;
+  jitter)
+    tools/install-deps.sh
+    build release jitter modelc
+    mkdir -p out
+    args=("$@")
+    scene=config/scenes/cbd.toml
+    for ((i = 0; i < ${#args[@]}; ++i)); do
+      if [ "${args[$i]}" = "--scene" ] && [ $((i + 1)) -lt ${#args[@]} ]; then scene=${args[$((i + 1))]}; fi
+    done
+    if [[ " ${args[*]:-} " != *" --scene "* ]]; then args=(--scene "$scene" "${args[@]}"); fi
+    echo "== modelc build --scene $scene"
+    build/release/bin/modelc build --scene "$scene" --report out/models.json
+    echo "== jitter ${args[*]}"
+    exec build/release/bin/jitter "${args[@]}"
+    ;;
   test)
     tools/install-deps.sh
     echo "== release build and full test suite"
@@ -55,7 +75,7 @@ case "$mode" in
     echo "== all test suites passed"
     ;;
   *)
-    echo "usage: tools/bootstrap.sh run [trainer args...] | test" >&2
+    echo "usage: tools/bootstrap.sh run [trainer args...] | test | jitter [jitter args...]" >&2
     exit 2
     ;;
 esac

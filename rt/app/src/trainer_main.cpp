@@ -1,5 +1,6 @@
 // `trainer`: the appliance's main program. Loads a scene, runs the haptic loop on the chosen
 // HAL backend, prints a summary and optionally writes the JSON report (docs/report.md).
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -34,6 +35,15 @@ int main(int argc, char** argv) {
                  "real: CLOCK_MONOTONIC (the appliance); simulated: as fast as possible, "
                  "deterministic (sim HAL only)")
       ->check(CLI::IsMember({"real", "simulated"}));
+  std::int64_t period_us = 0;
+  int priority = 0;
+  int cpu = -1;
+  auto* period_opt = cli.add_option("--period-us", period_us,
+                                    "Loop period in microseconds, replacing loop.period_us");
+  auto* priority_opt = cli.add_option(
+      "--priority", priority, "SCHED_FIFO priority (0 = SCHED_OTHER), replacing loop.priority");
+  auto* cpu_opt = cli.add_option("--cpu", cpu,
+                                 "CPU to pin the haptic thread to (-1 = none), replacing loop.cpu");
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
   cli.footer(
@@ -46,6 +56,9 @@ int main(int argc, char** argv) {
   if (*seconds_opt) options.seconds = seconds;
   options.time_source = time_source == "simulated" ? trainer::app::TimeSource::simulated
                                                    : trainer::app::TimeSource::real;
+  if (*period_opt) options.loop_overrides.period_us = period_us;
+  if (*priority_opt) options.loop_overrides.priority = priority;
+  if (*cpu_opt) options.loop_overrides.cpu = cpu;
   options.arm = !no_arm;
   options.apply_rt_settings = !no_rt;
 

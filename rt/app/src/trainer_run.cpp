@@ -1,5 +1,6 @@
 #include "trainer/app/trainer_run.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -40,9 +41,10 @@ void drain_log(core::LogRing& ring, const RunOptions& options) {
   }
 }
 
-core::Expected<std::uint64_t> cycles_to_run(const RunOptions& options,
-                                            const config::SceneConfig& scene,
-                                            double script_duration_s) {
+// The run length before the max_cycles cap; 0 = until SIGINT/SIGTERM.
+core::Expected<std::uint64_t> uncapped_cycles(const RunOptions& options,
+                                              const config::SceneConfig& scene,
+                                              double script_duration_s) {
   const double period_s = static_cast<double>(scene.loop.period_ns) * 1e-9;
   if (options.cycles) return *options.cycles;
   if (options.seconds) {
@@ -52,12 +54,21 @@ core::Expected<std::uint64_t> cycles_to_run(const RunOptions& options,
   if (scene.trainee.end_run_with_script && script_duration_s > 0.0) {
     return static_cast<std::uint64_t>(std::ceil((script_duration_s + kScriptTailS) / period_s));
   }
-  if (options.time_source == TimeSource::simulated) {
+  if (options.time_source == TimeSource::simulated && !options.max_cycles) {
     return core::make_error(
         "simulated time needs a run length: give --cycles or --seconds (or a scene whose "
         "trainee script ends, with trainee.end_run_with_script = true)");
   }
-  return std::uint64_t{0};  // until SIGINT/SIGTERM
+  return std::uint64_t{0};
+}
+
+core::Expected<std::uint64_t> cycles_to_run(const RunOptions& options,
+                                            const config::SceneConfig& scene,
+                                            double script_duration_s) {
+  auto cycles = uncapped_cycles(options, scene, script_duration_s);
+  if (!cycles || !options.max_cycles) return cycles;
+  if (*options.max_cycles == 0) return core::make_error("max_cycles must be positive");
+  return *cycles == 0 ? *options.max_cycles : std::min(*cycles, *options.max_cycles);
 }
 
 }  // namespace
@@ -65,6 +76,10 @@ core::Expected<std::uint64_t> cycles_to_run(const RunOptions& options,
 core::Expected<RunResult> run_trainer(const RunOptions& options) {
   auto scene = config::load_scene(options.scene_file);
   if (!scene) return std::move(scene).error();
+  if (auto overridden = config::apply_loop_overrides(scene->loop, options.loop_overrides);
+      !overridden) {
+    return std::move(overridden).error();
+  }
   if (options.hal != "sim") {
     return core::make_error("--hal " + options.hal +
                             ": unknown backend; this build offers 'sim' (the simulated bench)");

@@ -359,6 +359,37 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
 
 }  // namespace
 
+core::Expected<void> apply_loop_overrides(LoopConfig& loop, const LoopOverrides& overrides) {
+  const auto check = [](std::string_view key, std::int64_t value, IntRange range,
+                        std::string_view unit) -> core::Expected<void> {
+    if (value >= range.min && value <= range.max) return {};
+    return core::make_error("override of loop." + std::string(key) + " = " + std::to_string(value) +
+                            " is out of range: expected " + std::to_string(range.min) + " to " +
+                            std::to_string(range.max) + " (" + std::string(unit) + ")");
+  };
+  if (overrides.period_us) {
+    if (auto ok = check("period_us", *overrides.period_us, kPeriodRangeUs, "microseconds"); !ok) {
+      return ok;
+    }
+  }
+  if (overrides.priority) {
+    if (auto ok = check("priority", *overrides.priority, kPriorityRange,
+                        "SCHED_FIFO priority, 0 = SCHED_OTHER");
+        !ok) {
+      return ok;
+    }
+  }
+  if (overrides.cpu) {
+    if (auto ok = check("cpu", *overrides.cpu, kCpuRange, "CPU index, -1 = no pinning"); !ok) {
+      return ok;
+    }
+  }
+  if (overrides.period_us) loop.period_ns = *overrides.period_us * kNanosecondsPerMicrosecond;
+  if (overrides.priority) loop.priority = *overrides.priority;
+  if (overrides.cpu) loop.cpu = *overrides.cpu;
+  return {};
+}
+
 core::Expected<SceneConfig> load_scene(const std::filesystem::path& file,
                                        const LoadOptions& options) {
   auto parsed = detail::parse_toml_file(file);

@@ -94,6 +94,52 @@ TEST(TrainerRun, RealClockShortRunCompletes) {
   EXPECT_EQ(result->time_source, "real");
 }
 
+TEST(TrainerRun, LoopOverridesReplaceTheScenesPeriod) {
+  RunOptions options = simulated(200);
+  options.loop_overrides.period_us = 250;
+  auto result = run_trainer(options);
+  ASSERT_TRUE(result) << result.error().message;
+  EXPECT_EQ(result->period_ns, 250'000);
+  EXPECT_EQ(result->loop.cycles, 200U);
+  EXPECT_EQ(result->latched_faults, 0U) << result->first_fault;
+
+  RunOptions bad = simulated(10);
+  bad.loop_overrides.priority = 120;
+  auto refused = run_trainer(bad);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("loop.priority = 120"), std::string::npos)
+      << refused.error().message;
+}
+
+TEST(TrainerRun, MaxCyclesCapsEveryWayOfChoosingTheLength) {
+  RunOptions cycles = simulated(500);
+  cycles.max_cycles = 120;
+  auto capped = run_trainer(cycles);
+  ASSERT_TRUE(capped) << capped.error().message;
+  EXPECT_EQ(capped->loop.cycles, 120U);
+  EXPECT_EQ(capped->requested_cycles, 120U);
+
+  // A cap above the asked length changes nothing.
+  RunOptions longer = simulated(90);
+  longer.max_cycles = 1000;
+  auto uncapped = run_trainer(longer);
+  ASSERT_TRUE(uncapped) << uncapped.error().message;
+  EXPECT_EQ(uncapped->loop.cycles, 90U);
+
+  // No length at all (a run until a signal) is bounded by the cap alone, even in simulated
+  // time, which otherwise refuses an unbounded run.
+  RunOptions open_ended = simulated(1);
+  open_ended.cycles.reset();
+  open_ended.max_cycles = 75;
+  auto bounded = run_trainer(open_ended);
+  ASSERT_TRUE(bounded) << bounded.error().message;
+  EXPECT_EQ(bounded->loop.cycles, 75U);
+
+  RunOptions zero = simulated(10);
+  zero.max_cycles = 0;
+  EXPECT_FALSE(run_trainer(zero));
+}
+
 TEST(TrainerRun, BadSceneAndBackendAreRefusedWithMessages) {
   RunOptions missing = simulated(10);
   missing.scene_file = "/nonexistent/scene.toml";

@@ -427,5 +427,54 @@ const SceneErrorCase kSceneErrorCases[] = {
 INSTANTIATE_TEST_SUITE_P(EveryMistake, SceneErrorTest, ::testing::ValuesIn(kSceneErrorCases),
                          [](const auto& param_info) { return std::string(param_info.param.name); });
 
+// ---------------------------------------------------------------- [loop] overrides
+
+TEST(LoopOverrides, ReplaceOnlyTheGivenKeys) {
+  LoopConfig loop;
+  loop.period_ns = 1'000'000;
+  loop.priority = 80;
+  loop.cpu = 1;
+  ASSERT_TRUE(apply_loop_overrides(loop, LoopOverrides{.period_us = 100}).has_value());
+  EXPECT_EQ(loop.period_ns, 100'000);
+  EXPECT_EQ(loop.priority, 80);
+  EXPECT_EQ(loop.cpu, 1);
+  ASSERT_TRUE(apply_loop_overrides(loop, LoopOverrides{.priority = 0, .cpu = -1}).has_value());
+  EXPECT_EQ(loop.period_ns, 100'000);
+  EXPECT_EQ(loop.priority, 0);
+  EXPECT_EQ(loop.cpu, -1);
+  // The range ends are the file's: [50, 100000] us, [0, 99], [-1, 1023].
+  EXPECT_TRUE(
+      apply_loop_overrides(loop, LoopOverrides{.period_us = 50, .priority = 99, .cpu = 1023})
+          .has_value());
+  EXPECT_EQ(loop.period_ns, 50'000);
+}
+
+TEST(LoopOverrides, OutOfRangeNamesTheKeyAndLeavesTheLoopUntouched) {
+  LoopConfig loop;
+  loop.period_ns = 1'000'000;
+  loop.priority = 80;
+  loop.cpu = 1;
+  // A valid period next to an invalid priority: nothing is applied.
+  const auto bad_priority =
+      apply_loop_overrides(loop, LoopOverrides{.period_us = 200, .priority = 100});
+  ASSERT_FALSE(bad_priority.has_value());
+  expect_contains(bad_priority.error().message, "override of loop.priority = 100");
+  expect_contains(bad_priority.error().message, "expected 0 to 99");
+  EXPECT_EQ(loop.period_ns, 1'000'000);
+  EXPECT_EQ(loop.priority, 80);
+
+  const auto bad_period = apply_loop_overrides(loop, LoopOverrides{.period_us = 20});
+  ASSERT_FALSE(bad_period.has_value());
+  expect_contains(bad_period.error().message, "loop.period_us = 20");
+  expect_contains(bad_period.error().message, "expected 50 to 100000");
+  expect_contains(bad_period.error().message, "microseconds");
+
+  const auto bad_cpu = apply_loop_overrides(loop, LoopOverrides{.cpu = -2});
+  ASSERT_FALSE(bad_cpu.has_value());
+  expect_contains(bad_cpu.error().message, "loop.cpu = -2");
+  expect_contains(bad_cpu.error().message, "expected -1 to 1023");
+  EXPECT_EQ(loop.cpu, 1);
+}
+
 }  // namespace
 }  // namespace trainer::config

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "trainer/app/haptic_app.hpp"
+#include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/loop/periodic_loop.hpp"
 #include "trainer/loop/rt_settings.hpp"
@@ -29,6 +30,12 @@ struct RunOptions {
   std::string hal = "sim";
   std::optional<std::uint64_t> cycles;  // run length; default: the trainee script's length
   std::optional<double> seconds;
+  // Upper bound on the run length whatever set it (cycles, seconds, the script's end, or a run
+  // until a signal); > 0. The jitter tool runs a scene back to back with it.
+  std::optional<std::uint64_t> max_cycles;
+  // Replace the scene's loop.period_us / priority / cpu for this run (range-checked as in the
+  // file; the report shows what ran).
+  config::LoopOverrides loop_overrides;
   TimeSource time_source = TimeSource::real;
   bool apply_rt_settings = true;  // SCHED_FIFO, affinity, mlockall from the scene's [loop]
   bool arm = true;                // issue the explicit reset that arms the safety chain

@@ -122,6 +122,19 @@ struct LoadOptions {
   bool require_script_file = true;
 };
 
+// Values given on a command line (trainer, jitter) that replace the scene's [loop] keys of the
+// same name for one run; unset members keep the file's value.
+struct LoopOverrides {
+  std::optional<std::int64_t> period_us{};  // loop.period_us
+  std::optional<int> priority{};            // loop.priority
+  std::optional<int> cpu{};                 // loop.cpu
+};
+
+// Checks every set override against the range of its [loop] key (docs/config.md) and, only
+// when all are valid, writes them into `loop`. The error names the key, the value, the range
+// and that it came from an override rather than the file.
+core::Expected<void> apply_loop_overrides(LoopConfig& loop, const LoopOverrides& overrides);
+
 // Loads and validates a scene file and the device file it names ([scene] device, relative to
 // the scene file's directory). On failure the message names the file (scene or device), the
 // line (when there is one), the key, the bad value and what was expected.
