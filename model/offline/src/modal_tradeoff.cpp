@@ -429,6 +429,13 @@ core::Expected<void> DuctTradeStudy::measure_runtime(const ModalTradeConfig& con
   return {};
 }
 
+double selection_cost_ns(const ModalTradePoint& point) {
+  const double per_cycle = point.cost.repetition_median_min_ns > 0.0
+                               ? point.cost.repetition_median_min_ns
+                               : point.cost.median_ns;
+  return per_cycle * (1e-3 / point.config.time_step_s);
+}
+
 core::Expected<std::size_t> select_for_budget(const std::vector<ModalTradePoint>& points,
                                               double budget, std::vector<std::string>* log) {
   if (!(budget > 0.0) || !std::isfinite(budget)) {
@@ -438,11 +445,7 @@ core::Expected<std::size_t> select_for_budget(const std::vector<ModalTradePoint>
   if (points.empty()) return core::make_error("error budget: no configurations measured");
   std::vector<std::size_t> order(points.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  // Cost per millisecond of simulated time: equal to the per-cycle order at one time step, and
-  // a 4 kHz configuration costs four cycles where a 1 kHz one costs one.
-  const auto cost = [&](std::size_t i) {
-    return points[i].cost.median_ns * (1e-3 / points[i].config.time_step_s);
-  };
+  const auto cost = [&](std::size_t i) { return selection_cost_ns(points[i]); };
   std::sort(order.begin(), order.end(),
             [&](std::size_t a, std::size_t b) { return cost(a) < cost(b); });
   const auto simpler = [](const ModalTradePoint& a, const ModalTradePoint& b) {
@@ -509,7 +512,7 @@ core::Expected<BudgetChoice> choose_for_budget(DuctTradeStudy& study, double bud
   }
   std::sort(choice.candidates.begin(), choice.candidates.end(),
             [](const ModalTradePoint& a, const ModalTradePoint& b) {
-              return a.cost.median_ns < b.cost.median_ns;
+              return selection_cost_ns(a) < selection_cost_ns(b);
             });
   auto selected = select_for_budget(choice.candidates, budget, &choice.log);
   if (!selected) return std::move(selected).error();

@@ -204,6 +204,7 @@ offline::BudgetChoice choose_modes_for_budget(const std::string& name, offline::
   for (const offline::ModalTradePoint& point : choice.candidates) {
     candidates_json.push_back({{"modes", point.config.modes},
                                {"static_correction", point.config.static_correction},
+                               {"selection_cost_ns", offline::selection_cost_ns(point)},
                                {"cost_median_ns", point.cost.median_ns},
                                {"cost_p99_ns", point.cost.p99_ns},
                                {"tuning_error", point.tuning_error},
@@ -217,6 +218,7 @@ offline::BudgetChoice choose_modes_for_budget(const std::string& name, offline::
           {"tuning_error", chosen.tuning_error},
           {"validation_error", chosen.validation_error},
           {"measured_error", chosen.worst_error},
+          {"selection_cost_ns", offline::selection_cost_ns(chosen)},
           {"cost_median_ns", chosen.cost.median_ns},
           {"cost_p99_ns", chosen.cost.p99_ns},
           {"reference_time_step_s", reference_step_s},

@@ -169,6 +169,12 @@ struct BudgetChoice {
   std::vector<std::string> log;             // why each cheaper candidate was passed over
 };
 
+// The cost a budget choice compares: the smallest of the repetitions' median cycle times (the
+// least disturbed repetition: on a shared machine other work only ever adds time), per
+// millisecond of simulated time (a 4 kHz configuration runs four cycles where a 1 kHz one runs
+// one). Falls back to the overall median when there are no repetition medians.
+double selection_cost_ns(const ModalTradePoint& point);
+
 // Index into `points` of the cheapest one meeting `budget` (rules of choose_for_budget below),
 // appending to `log` why each cheaper point was passed over; an error names the most accurate
 // point when none meets it.
@@ -177,10 +183,9 @@ core::Expected<std::size_t> select_for_budget(const std::vector<ModalTradePoint>
 
 // The cheapest configuration among `candidates` whose worst RMS error on the tuning scenarios
 // is within `budget` (a fraction, 0.02 = 2 %) and which then also meets it on the held-out
-// scenarios. "Cheapest" is the measured median cost per millisecond of simulated time (the
-// cycle cost at one time step); candidates within 5 % of each other count as equally cheap and
-// the simpler wins (longer step, then fewer modes, then correction off), so noise does not pick
-// a larger model. Refuses when no candidate meets the budget, naming the best one.
+// scenarios. "Cheapest" is selection_cost_ns; candidates within 5 % of each other count as
+// equally cheap and the simpler wins (longer step, then fewer modes, then correction off), so
+// noise does not pick a larger model. Refuses when no candidate meets the budget, naming the best one.
 core::Expected<BudgetChoice> choose_for_budget(DuctTradeStudy& study, double budget,
                                                const std::vector<ModalTradeConfig>& candidates,
                                                const CycleCostOptions& cost_options);
