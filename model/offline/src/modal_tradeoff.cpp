@@ -12,27 +12,15 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model_offline/dnios.hpp"
+#include "cycle_cost_summary.hpp"
 
 namespace trainer::model::offline {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double nanoseconds(Clock::duration d) {
-  return std::chrono::duration<double, std::nano>(d).count();
-}
-
-// Order statistic at fraction q of a copy of `values` (nearest rank, as the reports use).
-double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  const auto rank = static_cast<std::size_t>(
-      std::min<double>(static_cast<double>(values.size()) - 1.0,
-                       std::ceil(q * static_cast<double>(values.size())) - 1.0));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(rank),
-                   values.end());
-  return values[rank];
-}
+using cycle_cost::Clock;
+using cycle_cost::nanoseconds;
+using cycle_cost::percentile;
 
 // Area-weighted vertex normal of `node`, oriented towards the mesh's centroid (inward for a
 // tube or any shell around its centroid).
@@ -383,13 +371,14 @@ core::Expected<void> DuctTradeStudy::measure_runtime(const ModalTradeConfig& con
   const ReferenceHistory& reference = references_.front();
   const double depth_m = scenarios_.front().keyframes.back().depth_m;
   std::vector<Scalar> surface(3 * static_cast<std::size_t>(model->node_count()));
+  if (auto valid = cycle_cost::check_options(cost_options, "duct trade study"); !valid) {
+    return valid;
+  }
   std::vector<double> total_ns;
   std::vector<double> haptic_ns;
-  std::vector<double> repetition_medians;
   model->reset();
   const int total_cycles =
       cost_options.warmup_cycles + cost_options.repetitions * cost_options.cycles_per_repetition;
-  std::vector<double> repetition;
   for (int cycle = 0; cycle < total_cycles; ++cycle) {
     const double t = cycle * config.time_step_s;
     const double depth = depth_m * (0.5 - 0.5 * std::cos(2.0 * M_PI * 4.0 * t));
@@ -407,25 +396,8 @@ core::Expected<void> DuctTradeStudy::measure_runtime(const ModalTradeConfig& con
     if (cycle < cost_options.warmup_cycles) continue;
     total_ns.push_back(nanoseconds(end - start));
     haptic_ns.push_back(nanoseconds(stepped - start));
-    repetition.push_back(total_ns.back());
-    if (static_cast<int>(repetition.size()) == cost_options.cycles_per_repetition) {
-      repetition_medians.push_back(percentile(repetition, 0.5));
-      repetition.clear();
-    }
   }
-  point.cost.median_ns = percentile(total_ns, 0.5);
-  point.cost.p99_ns = percentile(total_ns, 0.99);
-  point.cost.haptic_median_ns = percentile(haptic_ns, 0.5);
-  point.cost.haptic_p99_ns = percentile(haptic_ns, 0.99);
-  if (!repetition_medians.empty()) {
-    point.cost.repetition_median_min_ns =
-        *std::min_element(repetition_medians.begin(), repetition_medians.end());
-    point.cost.repetition_median_max_ns =
-        *std::max_element(repetition_medians.begin(), repetition_medians.end());
-  }
-  point.cost.warmup_cycles = cost_options.warmup_cycles;
-  point.cost.repetitions = cost_options.repetitions;
-  point.cost.cycles_per_repetition = cost_options.cycles_per_repetition;
+  point.cost = cycle_cost::summarize(cost_options, total_ns, haptic_ns);
   return {};
 }
 
