@@ -222,6 +222,56 @@ TEST(MeshValidation, EachProblemIsNamed) {
   expect_invalid(ShellMesh{}, "0 nodes and 0 triangles");
 }
 
+// One row of quads of height h and width 1: every triangle's smallest angle is atan(h).
+ShellMesh thin_strip(double smallest_angle_deg) {
+  const double height = std::tan(smallest_angle_deg * std::numbers::pi / 180.0);
+  return *make_rectangle_plate(2.0, height, 2, 1, TrianglePattern::right);
+}
+
+TEST(MeshValidation, SliversAreRefusedWithTheirAngleAndNode) {
+  EXPECT_TRUE(validate_shell_mesh(thin_strip(1.01 * kMinTriangleAngleDeg)));
+  const ShellMesh needle = thin_strip(0.99 * kMinTriangleAngleDeg);
+  // Triangle 0 of the right split is (0, 1, 4) = (0, 0), (1, 0), (1, h): its smallest angle,
+  // atan(h), is at node 0.
+  ASSERT_EQ(needle.triangles.row(0), Eigen::RowVector3i(0, 1, 4));
+  expect_invalid(needle, "triangle 0 (nodes 0, 1, 4): sliver, smallest angle 0.99 deg at node 0");
+  expect_invalid(needle, "expected >= 1 deg (remesh)");
+  // A cap: node 1, the middle of the bottom edge, pushed up almost onto the diagonal 0–4 of
+  // the unit square leaves triangle (0, 1, 4) with an angle near 180 deg at node 1 and two tiny
+  // ones.
+  ShellMesh cap = strip();
+  cap.nodes.row(1) << 0.5005, 0.4995, 0.0;
+  auto result = validate_shell_mesh(cap);
+  ASSERT_FALSE(result);
+  EXPECT_NE(result.error().message.find("triangle 0 (nodes 0, 1, 4): sliver, smallest angle "),
+            std::string::npos)
+      << result.error().message;
+  // A zero-area triangle is reported as degenerate, not as a sliver.
+  ShellMesh flat = strip();
+  flat.nodes.row(1) << 0.5, 0.5, 0.0;  // exactly on the diagonal 0–4
+  result = validate_shell_mesh(flat);
+  ASSERT_FALSE(result);
+  EXPECT_NE(result.error().message.find("triangle 0 (nodes 0, 1, 4): degenerate"),
+            std::string::npos)
+      << result.error().message;
+  EXPECT_EQ(result.error().message.find("sliver"), std::string::npos) << result.error().message;
+}
+
+TEST(MeshValidation, InconsistentOrientationNamesBothTriangles) {
+  ShellMesh mesh = strip();
+  ASSERT_EQ(mesh.triangles.row(0), Eigen::RowVector3i(0, 1, 4));
+  ASSERT_EQ(mesh.triangles.row(1), Eigen::RowVector3i(0, 4, 3));
+  mesh.triangles.row(1) << 0, 3, 4;  // reversed: its normal now points to −z
+  expect_invalid(mesh, "triangles 0 and 1: inconsistent orientation, both run along their shared "
+                       "edge 4->0");
+  // A consistently reversed mesh (every normal flipped) is valid.
+  ShellMesh reversed = strip();
+  for (Eigen::Index t = 0; t < reversed.triangles.rows(); ++t) {
+    std::swap(reversed.triangles(t, 1), reversed.triangles(t, 2));
+  }
+  EXPECT_TRUE(validate_shell_mesh(reversed));
+}
+
 TEST(MeshValidation, AssemblyRefusesAnInvalidMesh) {
   ShellMesh mesh = strip();
   mesh.nodes.row(4) = mesh.nodes.row(3);

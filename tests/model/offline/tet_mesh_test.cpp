@@ -256,5 +256,72 @@ TEST(ValidateTetMesh, EachProblemNamesTheElementOrNode) {
   expect_refused(TetMesh{}, "expected at least one of each");
 }
 
+// One tetrahedron from four corners (positive orientation expected by the caller).
+TetMesh single_tet(const Eigen::Matrix<double, 4, 3>& corners_m) {
+  TetMesh mesh;
+  mesh.nodes = corners_m;
+  mesh.tetrahedra.resize(1, 4);
+  mesh.tetrahedra << 0, 1, 2, 3;
+  return mesh;
+}
+
+std::string refusal(const TetMesh& mesh) {
+  auto result = validate_tet_mesh(mesh);
+  return result ? std::string() : result.error().message;
+}
+
+TEST(ValidateTetMesh, SliversAndNeedlesAreRefusedWithTheirAngle) {
+  // Sliver: the corners of a unit square, one lifted by h: its smallest dihedral angle is
+  // ≈ h rad (0.57 deg at h = 0.01, 2.9 deg at h = 0.05), the one opposite ≈ 180 deg.
+  const auto sliver = [](double h) {
+    Eigen::Matrix<double, 4, 3> corners;
+    corners << 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, h;
+    return single_tet(corners);
+  };
+  const std::string thin = refusal(sliver(0.01));
+  EXPECT_NE(thin.find("tetrahedron 0 (nodes 0, 1, 2, 3) is a sliver (smallest dihedral angle "),
+            std::string::npos)
+      << thin;
+  EXPECT_NE(thin.find("expected every dihedral and face angle >= 1 deg: remesh"), std::string::npos)
+      << thin;
+  EXPECT_EQ(refusal(sliver(0.05)), "");
+  // Needle: a small right triangle of legs d and a far apex: face angles atan(d/L) at the apex.
+  const auto needle = [](double angle_deg) {
+    const double d = std::tan(angle_deg * std::numbers::pi / 180.0);
+    Eigen::Matrix<double, 4, 3> corners;
+    corners << 0, 0, 0, d, 0, 0, 0, d, 0, 0, 0, 1;
+    return single_tet(corners);
+  };
+  EXPECT_EQ(refusal(needle(1.01 * kMinTetAngleDeg)), "");
+  const std::string sharp = refusal(needle(0.99 * kMinTetAngleDeg));
+  EXPECT_NE(sharp.find("is a needle (smallest face angle 0.99 deg at node 3 between nodes"),
+            std::string::npos)
+      << sharp;
+  // Every generated mesh passes with margin (its worst angle is tens of degrees).
+  EXPECT_TRUE(validate_tet_mesh(*make_tet_box(0.15, 0.10, 0.07, 16, 12, 8)));
+  EXPECT_TRUE(validate_tet_mesh(*make_tet_cylinder(0.02, 0.05, 4, 12)));
+}
+
+TEST(ValidateTetMesh, CoincidentNodesAreRefused) {
+  auto box = make_tet_box(0.01, 0.01, 0.01, 2, 1, 1);
+  ASSERT_TRUE(box);
+  ASSERT_TRUE(validate_tet_mesh(*box));
+  // Give node 1 (the middle of the bottom front edge) a twin used by the second cell's
+  // tetrahedra: a crack through the mesh, each tetrahedron still well shaped.
+  TetMesh cracked = *box;
+  const int twin = static_cast<int>(cracked.nodes.rows());
+  cracked.nodes.conservativeResize(twin + 1, 3);
+  cracked.nodes.row(twin) = cracked.nodes.row(1);
+  for (Eigen::Index e = 6; e < cracked.tetrahedra.rows(); ++e) {
+    for (int c = 0; c < 4; ++c) {
+      if (cracked.tetrahedra(e, c) == 1) cracked.tetrahedra(e, c) = twin;
+    }
+  }
+  const std::string message = refusal(cracked);
+  EXPECT_NE(message.find("node " + std::to_string(twin) + " is a duplicate of node 1"),
+            std::string::npos)
+      << message;
+}
+
 }  // namespace
 }  // namespace trainer::model::offline
