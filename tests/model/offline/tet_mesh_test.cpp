@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numbers>
 #include <string>
@@ -300,6 +301,60 @@ TEST(ValidateTetMesh, SliversAndNeedlesAreRefusedWithTheirAngle) {
   // Every generated mesh passes with margin (its worst angle is tens of degrees).
   EXPECT_TRUE(validate_tet_mesh(*make_tet_box(0.15, 0.10, 0.07, 16, 12, 8)));
   EXPECT_TRUE(validate_tet_mesh(*make_tet_cylinder(0.02, 0.05, 4, 12)));
+}
+
+// What the 1 deg threshold does not guard (docs/stability.md): a 1 m tet4 box of 3 × 3 × 3
+// cells clamped at its base, with the z = 2/3 plane of nodes moved down to 1/3 + h, so one
+// layer of tetrahedra flattens (mean-ratio quality 0.76 → 5e-5). CHOLMOD's reciprocal
+// condition estimate falls in proportion to h below 1 mm (3e-4, 3e-6, 3e-8 at h = 1e-3, 1e-5,
+// 1e-7 m), yet the static deflections converge: the solve is sound in double far below
+// anything validate_tet_mesh lets through, which refuses the layer from h = 1 mm (needles).
+TEST(ValidateTetMesh, SliverThresholdRationaleOnABox) {
+  double previous_shear = 0.0;
+  double previous_rcond = 0.0;
+  for (const double h : {1.0 / 3.0, 1e-2, 1e-3, 1e-5, 1e-7}) {
+    SCOPED_TRACE(h);
+    TetMesh mesh = *make_tet_box(1.0, 1.0, 1.0, 3, 3, 3);
+    for (Eigen::Index n = 0; n < mesh.nodes.rows(); ++n) {
+      if (std::abs(mesh.nodes(n, 2) - 2.0 / 3.0) < 1e-9) mesh.nodes(n, 2) = 1.0 / 3.0 + h;
+    }
+    double quality = 1.0;
+    for (Eigen::Index e = 0; e < mesh.tetrahedra.rows(); ++e) {
+      Eigen::Matrix<double, 4, 3> corners;
+      for (int c = 0; c < 4; ++c) corners.row(c) = mesh.nodes.row(mesh.tetrahedra(e, c));
+      quality = std::min(quality, tet_quality(corners));
+    }
+    auto assembled = assemble_tet(mesh, {1e6, 0.45, 1000.0},
+                                  {{mesh.node_sets.at("z0"), {true, true, true}}});
+    ASSERT_TRUE(assembled) << assembled.error().message;
+    auto solver = TetStaticSolver::create(*assembled);
+    ASSERT_TRUE(solver) << solver.error().message;
+    TetNodalLoads loads = TetNodalLoads::Zero(mesh.nodes.rows(), 3);
+    ASSERT_TRUE(add_tet_group_force(mesh, "z1", Eigen::Vector3d(10.0, 0.0, 0.0), loads));
+    const double shear = solver->solve_nodal(loads)->col(0).cwiseAbs().maxCoeff();
+    std::printf("layer %.0e m: worst quality %.2e, condition estimate %.2e, top shear %.7e m\n", h,
+                quality, solver->reciprocal_condition_estimate(), shear);
+    const double rcond = solver->reciprocal_condition_estimate();
+    if (h < 1e-3) {
+      // Two decades thinner: the estimate falls by about a hundred.
+      EXPECT_LT(rcond, 2e-2 * previous_rcond);
+      EXPECT_GT(rcond, 5e-3 * previous_rcond);
+    }
+    if (h == 1e-7) {
+      EXPECT_NEAR(shear, previous_shear, 1e-4 * shear);  // converged
+    }
+    previous_shear = shear;
+    previous_rcond = rcond;
+    const auto validated = validate_tet_mesh(mesh);
+    if (h <= 1e-3) {
+      ASSERT_FALSE(validated);
+      EXPECT_NE(validated.error().message.find("expected every dihedral and face angle >= 1 deg"),
+                std::string::npos)
+          << validated.error().message;
+    } else if (h > 1e-2) {
+      EXPECT_TRUE(validated) << validated.error().message;
+    }
+  }
 }
 
 TEST(ValidateTetMesh, CoincidentNodesAreRefused) {
