@@ -7,9 +7,11 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace trainer::model::offline {
@@ -65,6 +67,21 @@ void check_sets(const std::map<std::string, std::vector<int>>& sets, const char*
       }
     }
   }
+}
+
+// Interior angle (degrees) of triangle t at its corner `corner`.
+double corner_angle_deg(const ShellMesh& mesh, Eigen::Index t, int corner) {
+  const Eigen::RowVector3d at = mesh.nodes.row(mesh.triangles(t, corner));
+  const Eigen::RowVector3d to_next = mesh.nodes.row(mesh.triangles(t, (corner + 1) % 3)) - at;
+  const Eigen::RowVector3d to_previous = mesh.nodes.row(mesh.triangles(t, (corner + 2) % 3)) - at;
+  return std::atan2(to_next.cross(to_previous).norm(), to_next.dot(to_previous)) * 180.0 /
+         std::numbers::pi;
+}
+
+std::array<int, 3> sorted_nodes(const ShellMesh& mesh, Eigen::Index t) {
+  std::array<int, 3> nodes{mesh.triangles(t, 0), mesh.triangles(t, 1), mesh.triangles(t, 2)};
+  std::sort(nodes.begin(), nodes.end());
+  return nodes;
 }
 
 }  // namespace
@@ -135,6 +152,28 @@ core::Expected<void> validate_shell_mesh(const ShellMesh& mesh) {
     }
   }
 
+  // Slivers: the smallest interior angle of every non-degenerate triangle.
+  for (Eigen::Index t = 0; t < triangle_count && !problems.full(); ++t) {
+    if (!(areas[static_cast<std::size_t>(t)] > kDegenerateAreaRatio * mean_area)) continue;
+    double smallest_deg = 180.0;
+    int smallest_corner = 0;
+    for (int corner = 0; corner < 3; ++corner) {
+      const double angle = corner_angle_deg(mesh, t, corner);
+      if (angle < smallest_deg) {
+        smallest_deg = angle;
+        smallest_corner = corner;
+      }
+    }
+    if (smallest_deg < kMinTriangleAngleDeg) {
+      std::ostringstream out;
+      out << "triangle " << t << " (nodes " << mesh.triangles(t, 0) << ", " << mesh.triangles(t, 1)
+          << ", " << mesh.triangles(t, 2) << "): sliver, smallest angle " << smallest_deg
+          << " deg at node " << mesh.triangles(t, smallest_corner) << "; expected >= "
+          << kMinTriangleAngleDeg << " deg (remesh)";
+      problems.add(out.str());
+    }
+  }
+
   // Duplicate triangles: same node set in any order.
   std::vector<std::pair<std::array<int, 3>, Eigen::Index>> sorted_triangles;
   sorted_triangles.reserve(static_cast<std::size_t>(triangle_count));
@@ -150,6 +189,47 @@ core::Expected<void> validate_shell_mesh(const ShellMesh& mesh) {
                    ": duplicate of triangle " + std::to_string(sorted_triangles[i - 1].second) +
                    " (same nodes)");
     }
+  }
+
+  // Orientation: an edge shared by exactly two triangles must be run in opposite directions.
+  // Edges of duplicate triangles (reported above) and of non-manifold edges are not judged.
+  struct EdgeUse {
+    int low, high;
+    bool forward;  // the triangle runs low → high
+    Eigen::Index triangle;
+    bool operator<(const EdgeUse& other) const {
+      return std::tie(low, high, triangle) < std::tie(other.low, other.high, other.triangle);
+    }
+  };
+  std::vector<EdgeUse> edges;
+  edges.reserve(static_cast<std::size_t>(3 * triangle_count));
+  for (Eigen::Index t = 0; t < triangle_count; ++t) {
+    for (int corner = 0; corner < 3; ++corner) {
+      const int from = mesh.triangles(t, corner);
+      const int to = mesh.triangles(t, (corner + 1) % 3);
+      edges.push_back({std::min(from, to), std::max(from, to), from < to, t});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size() && !problems.full();) {
+    std::size_t end = i + 1;
+    while (end < edges.size() && edges[end].low == edges[i].low &&
+           edges[end].high == edges[i].high) {
+      ++end;
+    }
+    const EdgeUse& first = edges[i];
+    const EdgeUse& second = edges[end - 1];
+    if (end - i == 2 && first.forward == second.forward &&
+        sorted_nodes(mesh, first.triangle) != sorted_nodes(mesh, second.triangle)) {
+      const int from = first.forward ? first.low : first.high;
+      const int to = first.forward ? first.high : first.low;
+      problems.add("triangles " + std::to_string(first.triangle) + " and " +
+                   std::to_string(second.triangle) + ": inconsistent orientation, both run along "
+                   "their shared edge " + std::to_string(from) + "->" + std::to_string(to) +
+                   " (neighbours must run along it in opposite directions so that their "
+                   "normals point to the same side); reverse the node order of the inverted one");
+    }
+    i = end;
   }
 
   // Duplicate nodes: sweep along x, comparing only nodes within the tolerance in x.

@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numbers>
+#include <numeric>
 #include <set>
 #include <sstream>
 #include <string>
@@ -62,6 +64,67 @@ std::string geometry_problem(const Eigen::Matrix<double, 4, 3>& corners_m) {
     return out.str();
   }
   return {};
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / std::numbers::pi;
+}
+
+// Empty when every dihedral and face angle of a valid (positive, non-degenerate) tetrahedron is
+// at least kMinTetAngleDeg, else the smallest offender. `corners` gives node numbers for the
+// message.
+std::string shape_problem(const Eigen::Matrix<double, 4, 3>& corners_m,
+                          const Eigen::RowVector4i& corners) {
+  double smallest_dihedral = 180.0;
+  double smallest_face = 180.0;
+  std::string dihedral_where;
+  std::string face_where;
+  for (int a = 0; a < 4; ++a) {
+    for (int b = a + 1; b < 4; ++b) {
+      // The two other corners c, d: the faces (a, b, c) and (a, b, d) meet at edge a–b.
+      int others[2];
+      int count = 0;
+      for (int k = 0; k < 4; ++k) {
+        if (k != a && k != b) others[count++] = k;
+      }
+      const Eigen::Vector3d origin = corners_m.row(a).transpose();
+      const Eigen::Vector3d edge = (corners_m.row(b).transpose() - origin).normalized();
+      Eigen::Vector3d across[2];
+      for (int i = 0; i < 2; ++i) {
+        const Eigen::Vector3d to_other = corners_m.row(others[i]).transpose() - origin;
+        across[i] = to_other - to_other.dot(edge) * edge;
+      }
+      const double dihedral = angle_deg(across[0], across[1]);
+      if (dihedral < smallest_dihedral) {
+        smallest_dihedral = dihedral;
+        dihedral_where = "at edge " + std::to_string(corners(a)) + "-" + std::to_string(corners(b));
+      }
+    }
+  }
+  for (int at = 0; at < 4; ++at) {
+    for (int b = 0; b < 4; ++b) {
+      for (int c = b + 1; c < 4; ++c) {
+        if (b == at || c == at) continue;
+        const Eigen::Vector3d origin = corners_m.row(at).transpose();
+        const double face = angle_deg(corners_m.row(b).transpose() - origin,
+                                      corners_m.row(c).transpose() - origin);
+        if (face < smallest_face) {
+          smallest_face = face;
+          face_where = "at node " + std::to_string(corners(at)) + " between nodes " +
+                       std::to_string(corners(b)) + " and " + std::to_string(corners(c));
+        }
+      }
+    }
+  }
+  std::ostringstream out;
+  if (smallest_dihedral < kMinTetAngleDeg && smallest_dihedral <= smallest_face) {
+    out << "is a sliver (smallest dihedral angle " << smallest_dihedral << " deg " << dihedral_where
+        << "; expected every dihedral and face angle >= " << kMinTetAngleDeg << " deg: remesh)";
+  } else if (smallest_face < kMinTetAngleDeg) {
+    out << "is a needle (smallest face angle " << smallest_face << " deg " << face_where
+        << "; expected every dihedral and face angle >= " << kMinTetAngleDeg << " deg: remesh)";
+  }
+  return out.str();
 }
 
 }  // namespace
@@ -567,8 +630,33 @@ core::Expected<void> validate_tet_mesh(const TetMesh& mesh) {
       corners_m.row(c) = mesh.nodes.row(corners(c));
       node_used[static_cast<std::size_t>(corners(c))] = true;
     }
-    const std::string problem = geometry_problem(corners_m);
+    std::string problem = geometry_problem(corners_m);
+    if (problem.empty()) problem = shape_problem(corners_m, corners);
     if (!problem.empty()) report(tet_description(e, corners) + " " + problem);
+  }
+  // Duplicate nodes (when every coordinate is finite): sweep along x, comparing only nodes
+  // within the tolerance in x.
+  if (mesh.nodes.allFinite()) {
+    const Eigen::RowVector3d lower = mesh.nodes.colwise().minCoeff();
+    const Eigen::RowVector3d upper = mesh.nodes.colwise().maxCoeff();
+    const double tolerance = kCoincidentTetNodeRatio * (upper - lower).norm();
+    std::vector<int> order(static_cast<std::size_t>(node_count));
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(),
+              [&mesh](int l, int r) { return mesh.nodes(l, 0) < mesh.nodes(r, 0); });
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      for (std::size_t j = i + 1; j < order.size(); ++j) {
+        const int a = order[i];
+        const int b = order[j];
+        if (mesh.nodes(b, 0) - mesh.nodes(a, 0) > tolerance) break;
+        if ((mesh.nodes.row(a) - mesh.nodes.row(b)).norm() <= tolerance) {
+          std::ostringstream out;
+          out << "node " << std::max(a, b) << " is a duplicate of node " << std::min(a, b)
+              << " (coincident within " << tolerance << " m: the mesh is split there; merge them)";
+          report(out.str());
+        }
+      }
+    }
   }
   for (int node = 0; node < node_count; ++node) {
     if (!node_used[static_cast<std::size_t>(node)]) {

@@ -73,7 +73,13 @@ core::Expected<Catheter> Catheter::create(const CatheterParams& params, const Ca
   if (params.damping_n_s_per_m > 0.0F) {
     substep_s = std::min(substep_s, mass_kg / static_cast<double>(params.damping_n_s_per_m));
   }
-  const std::uint64_t needed = substeps_for(static_cast<double>(setup.haptic_period_s), substep_s);
+  // step() divides the period by the stored float substep, so count with that same value: the
+  // double one can round to a float a few ulp smaller, and a period within rounding of a
+  // multiple of it would then need one substep more at run time than counted here (a catheter
+  // accepted at exactly max_substeps would refuse every step).
+  const float stored_substep_s = static_cast<float>(substep_s);
+  const std::uint64_t needed = substeps_for(static_cast<double>(setup.haptic_period_s),
+                                            static_cast<double>(stored_substep_s));
   if (needed > setup.max_substeps) {
     return refuse("a haptic period of " + number(setup.haptic_period_s) + " s needs " +
                   std::to_string(needed) + " substeps of at most " + number(substep_s) +
@@ -87,7 +93,7 @@ core::Expected<Catheter> Catheter::create(const CatheterParams& params, const Ca
   catheter.mass_kg_ = static_cast<float>(mass_kg);
   catheter.damping_n_s_per_m_ = params.damping_n_s_per_m;
   catheter.radius_m_ = params.outer_radius_m;
-  catheter.stable_substep_s_ = static_cast<float>(substep_s);
+  catheter.stable_substep_s_ = stored_substep_s;
   catheter.substeps_per_period_ = static_cast<std::uint32_t>(needed);
   catheter.max_substeps_ = setup.max_substeps;
   catheter.stiffness_.axial_n_per_m = static_cast<float>(axial_n_per_m);
@@ -265,13 +271,30 @@ core::Status Catheter::step(float period_s) noexcept {
     finite = substep(dt_s, fraction, static_cast<float>(k + 1) * fraction);
   }
   if (!finite) {
-    std::copy_n(saved_positions_.begin(), count_, positions_.begin());
-    std::copy_n(saved_velocities_.begin(), count_, velocities_.begin());
-    for (std::uint32_t i = 0; i < count_; ++i) hold_forces_n_[i].setZero();
-    for (std::size_t k = 0; k < plane_count_; ++k) plane_forces_n_[k].setZero();
+    restore_saved_state();
     return {core::StatusCode::numeric_error, "catheter: state became non-finite; restored the last good state"};
   }
+  if (crushed()) {
+    restore_saved_state();
+    return {core::StatusCode::numeric_error,
+            "catheter: a segment was crushed below 10 % of its rest length; restored the last good state"};
+  }
   return core::Status::ok();
+}
+
+void Catheter::restore_saved_state() noexcept {
+  std::copy_n(saved_positions_.begin(), count_, positions_.begin());
+  std::copy_n(saved_velocities_.begin(), count_, velocities_.begin());
+  for (std::uint32_t i = 0; i < count_; ++i) hold_forces_n_[i].setZero();
+  for (std::size_t k = 0; k < plane_count_; ++k) plane_forces_n_[k].setZero();
+}
+
+bool Catheter::crushed() const noexcept {
+  const float shortest = kMinSegmentRatio * stiffness_.rest_length_m;
+  for (std::uint32_t i = 0; i + 1 < count_; ++i) {
+    if ((positions_[i + 1] - positions_[i]).squaredNorm() < shortest * shortest) return true;
+  }
+  return false;
 }
 
 double Catheter::kinetic_energy_j() const noexcept {

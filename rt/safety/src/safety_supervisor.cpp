@@ -79,23 +79,27 @@ void SafetySupervisor::check_joint_step(bool prismatic, float previous_position,
 Vec3 SafetySupervisor::limit_force(std::size_t instrument, const Vec3& requested_n, float dt_s,
                                    std::uint64_t cycle) noexcept {
   if (instrument >= instrument_count_) return Vec3::Zero();
-  if (!requested_n.allFinite()) {
+  if (!requested_n.allFinite() || !std::isfinite(dt_s)) {
     latch(Fault::non_finite, cycle);
     return Vec3::Zero();
   }
   if (!armed()) return Vec3::Zero();
 
+  // The magnitude in double: a finite float request beyond ~1.8e19 N overflows a float norm,
+  // and the clamp would then scale it to zero instead of to max_force_n along its direction.
   Vec3 force = requested_n;
-  const float magnitude = force.norm();
-  if (magnitude > limits_.max_force_n) {
-    force *= limits_.max_force_n / magnitude;
+  const double magnitude = requested_n.cast<double>().norm();
+  if (magnitude > static_cast<double>(limits_.max_force_n)) {
+    force = (requested_n.cast<double>() * (static_cast<double>(limits_.max_force_n) / magnitude))
+                .cast<float>();
     ++clamped_cycles_;
   }
   // Slew-limit rises and direction changes; a pure decrease toward zero is always allowed
-  // (holding force up while the tool leaves a surface would inject energy).
+  // (holding force up while the tool leaves a surface would inject energy). No time (dt ≤ 0)
+  // allows no rise: a negative step would turn the limit around, past max_force_n.
   const Vec3& last = last_force_n_[instrument];
   const Vec3 step = force - last;
-  const float max_step = limits_.max_force_rate_n_per_s * dt_s;
+  const float max_step = dt_s > 0.0F ? limits_.max_force_rate_n_per_s * dt_s : 0.0F;
   const float step_norm = step.norm();
   const bool decreasing = force.squaredNorm() <= last.squaredNorm() && force.dot(last) >= 0.0F;
   if (step_norm > max_step && !decreasing) {
@@ -111,10 +115,11 @@ void SafetySupervisor::observe_power(std::size_t instrument, const Vec3& force_n
                                      std::uint64_t cycle) noexcept {
   if (instrument >= instrument_count_ || !armed()) return;
   const float power_w = force_n.dot(velocity_m_per_s);
-  if (!std::isfinite(power_w)) {
+  if (!std::isfinite(power_w) || !std::isfinite(dt_s)) {
     latch(Fault::non_finite, cycle);
     return;
   }
+  if (!(dt_s > 0.0F)) return;  // no time, no work (a NaN here would disable the check for good)
   delivered_energy_j_[instrument] += power_w * dt_s;
   if (limits_.passivity_energy_bound_j > 0.0F &&
       delivered_energy_j_[instrument] > limits_.passivity_energy_bound_j) {

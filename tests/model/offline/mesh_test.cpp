@@ -5,12 +5,15 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <set>
 
 #include "trainer/model_offline/mesh_generators.hpp"
 #include "trainer/model_offline/mesh_validation.hpp"
+#include "trainer/model_offline/loads.hpp"
 #include "trainer/model_offline/shell_assembly.hpp"
+#include "trainer/model_offline/static_solve.hpp"
 
 namespace trainer::model::offline {
 namespace {
@@ -220,6 +223,98 @@ TEST(MeshValidation, EachProblemIsNamed) {
     expect_invalid(mesh, "node 2: non-finite coordinates");
   }
   expect_invalid(ShellMesh{}, "0 nodes and 0 triangles");
+}
+
+// One row of quads of height h and width 1: every triangle's smallest angle is atan(h).
+ShellMesh thin_strip(double smallest_angle_deg) {
+  const double height = std::tan(smallest_angle_deg * std::numbers::pi / 180.0);
+  return *make_rectangle_plate(2.0, height, 2, 1, TrianglePattern::right);
+}
+
+TEST(MeshValidation, SliversAreRefusedWithTheirAngleAndNode) {
+  EXPECT_TRUE(validate_shell_mesh(thin_strip(1.01 * kMinTriangleAngleDeg)));
+  const ShellMesh needle = thin_strip(0.99 * kMinTriangleAngleDeg);
+  // Triangle 0 of the right split is (0, 1, 4) = (0, 0), (1, 0), (1, h): its smallest angle,
+  // atan(h), is at node 0.
+  ASSERT_EQ(needle.triangles.row(0), Eigen::RowVector3i(0, 1, 4));
+  expect_invalid(needle, "triangle 0 (nodes 0, 1, 4): sliver, smallest angle 0.99 deg at node 0");
+  expect_invalid(needle, "expected >= 1 deg (remesh)");
+  // A cap: node 1, the middle of the bottom edge, pushed up almost onto the diagonal 0–4 of
+  // the unit square leaves triangle (0, 1, 4) with an angle near 180 deg at node 1 and two tiny
+  // ones.
+  ShellMesh cap = strip();
+  cap.nodes.row(1) << 0.5005, 0.4995, 0.0;
+  auto result = validate_shell_mesh(cap);
+  ASSERT_FALSE(result);
+  EXPECT_NE(result.error().message.find("triangle 0 (nodes 0, 1, 4): sliver, smallest angle "),
+            std::string::npos)
+      << result.error().message;
+  // A zero-area triangle is reported as degenerate, not as a sliver.
+  ShellMesh flat = strip();
+  flat.nodes.row(1) << 0.5, 0.5, 0.0;  // exactly on the diagonal 0–4
+  result = validate_shell_mesh(flat);
+  ASSERT_FALSE(result);
+  EXPECT_NE(result.error().message.find("triangle 0 (nodes 0, 1, 4): degenerate"),
+            std::string::npos)
+      << result.error().message;
+  EXPECT_EQ(result.error().message.find("sliver"), std::string::npos) << result.error().message;
+}
+
+// What the 1 deg threshold guards (docs/stability.md): a 1 m DKT plate of 4 × 4 quads,
+// clamped at x = 0, end loads at x = 1 m, with row 2 of nodes moved down to y = 0.25 + h so
+// the row of quads between y = 0.25 and 0.25 + h thins to slivers of smallest angle
+// atan(h / 0.25 m). The deflections converge as the row thins (the geometry is the same
+// plate), but the smallest LDLᵀ pivot of K falls ~1000× per decade of angle; below the
+// threshold the mesh is refused. (Before the check, 0.23 deg still assembled with a pivot
+// ratio of 6e-8, 0.023 deg with 6e-11, and 0.0023 deg failed assembly as a "mechanism".)
+TEST(MeshValidation, SliverThresholdRationaleOnAPlate) {
+  double previous_pivot = 0.0;
+  double previous_tip = 0.0;
+  for (const double angle_deg : {45.0, 21.8, 2.3, 1.01, 0.99}) {
+    SCOPED_TRACE(angle_deg);
+    ShellMesh mesh = *make_rectangle_plate(1.0, 1.0, 4, 4, TrianglePattern::alternating);
+    const double h = 0.25 * std::tan(angle_deg * std::numbers::pi / 180.0);
+    for (int i = 0; i <= 4; ++i) mesh.nodes(2 * 5 + i, 1) = 0.25 + h;
+    auto shell = assemble_shell(mesh, ShellMaterial{2e11, 0.3, 0.01, 7800.0}, BendingElement::dkt,
+                                {{"x0", {kUx, kUy, kUz, kRx, kRy, kRz}}});
+    if (angle_deg < kMinTriangleAngleDeg) {
+      ASSERT_FALSE(shell);
+      EXPECT_NE(shell.error().message.find("sliver, smallest angle 0.99"), std::string::npos)
+          << shell.error().message;
+      continue;
+    }
+    ASSERT_TRUE(shell) << shell.error().message;
+    auto solver = ShellStaticSolver::create(*shell);
+    ASSERT_TRUE(solver) << solver.error().message;
+    Eigen::VectorXd loads = make_zero_loads(mesh);
+    ASSERT_TRUE(add_node_set_force(mesh, "x1", {0.0, 0.0, -100.0}, loads));
+    const double tip = solver->solve(loads)->node_displacements.col(kUz).cwiseAbs().maxCoeff();
+    std::printf("smallest angle %5.2f deg: pivot ratio %.2e, bending tip %.6e m\n", angle_deg,
+                solver->smallest_pivot_ratio(), tip);
+    if (angle_deg == 2.3) {
+      EXPECT_LT(solver->smallest_pivot_ratio(), 1e-2 * previous_pivot);  // 21.8 → 2.3 deg
+    }
+    if (angle_deg == 1.01) {
+      EXPECT_NEAR(tip, previous_tip, 5e-3 * previous_tip);  // converged against 2.3 deg
+    }
+    previous_pivot = solver->smallest_pivot_ratio();
+    previous_tip = tip;
+  }
+}
+
+TEST(MeshValidation, InconsistentOrientationNamesBothTriangles) {
+  ShellMesh mesh = strip();
+  ASSERT_EQ(mesh.triangles.row(0), Eigen::RowVector3i(0, 1, 4));
+  ASSERT_EQ(mesh.triangles.row(1), Eigen::RowVector3i(0, 4, 3));
+  mesh.triangles.row(1) << 0, 3, 4;  // reversed: its normal now points to −z
+  expect_invalid(mesh, "triangles 0 and 1: inconsistent orientation, both run along their shared "
+                       "edge 4->0");
+  // A consistently reversed mesh (every normal flipped) is valid.
+  ShellMesh reversed = strip();
+  for (Eigen::Index t = 0; t < reversed.triangles.rows(); ++t) {
+    std::swap(reversed.triangles(t, 1), reversed.triangles(t, 2));
+  }
+  EXPECT_TRUE(validate_shell_mesh(reversed));
 }
 
 TEST(MeshValidation, AssemblyRefusesAnInvalidMesh) {

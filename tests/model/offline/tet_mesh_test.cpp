@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numbers>
 #include <string>
@@ -254,6 +255,127 @@ TEST(ValidateTetMesh, EachProblemNamesTheElementOrNode) {
   expect_refused(bad_set, "node set 'tip' has index 17");
 
   expect_refused(TetMesh{}, "expected at least one of each");
+}
+
+// One tetrahedron from four corners (positive orientation expected by the caller).
+TetMesh single_tet(const Eigen::Matrix<double, 4, 3>& corners_m) {
+  TetMesh mesh;
+  mesh.nodes = corners_m;
+  mesh.tetrahedra.resize(1, 4);
+  mesh.tetrahedra << 0, 1, 2, 3;
+  return mesh;
+}
+
+std::string refusal(const TetMesh& mesh) {
+  auto result = validate_tet_mesh(mesh);
+  return result ? std::string() : result.error().message;
+}
+
+TEST(ValidateTetMesh, SliversAndNeedlesAreRefusedWithTheirAngle) {
+  // Sliver: the corners of a unit square, one lifted by h: its smallest dihedral angle is
+  // ≈ h rad (0.57 deg at h = 0.01, 2.9 deg at h = 0.05), the one opposite ≈ 180 deg.
+  const auto sliver = [](double h) {
+    Eigen::Matrix<double, 4, 3> corners;
+    corners << 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, h;
+    return single_tet(corners);
+  };
+  const std::string thin = refusal(sliver(0.01));
+  EXPECT_NE(thin.find("tetrahedron 0 (nodes 0, 1, 2, 3) is a sliver (smallest dihedral angle "),
+            std::string::npos)
+      << thin;
+  EXPECT_NE(thin.find("expected every dihedral and face angle >= 1 deg: remesh"), std::string::npos)
+      << thin;
+  EXPECT_EQ(refusal(sliver(0.05)), "");
+  // Needle: a small right triangle of legs d and a far apex: face angles atan(d/L) at the apex.
+  const auto needle = [](double angle_deg) {
+    const double d = std::tan(angle_deg * std::numbers::pi / 180.0);
+    Eigen::Matrix<double, 4, 3> corners;
+    corners << 0, 0, 0, d, 0, 0, 0, d, 0, 0, 0, 1;
+    return single_tet(corners);
+  };
+  EXPECT_EQ(refusal(needle(1.01 * kMinTetAngleDeg)), "");
+  const std::string sharp = refusal(needle(0.99 * kMinTetAngleDeg));
+  EXPECT_NE(sharp.find("is a needle (smallest face angle 0.99 deg at node 3 between nodes"),
+            std::string::npos)
+      << sharp;
+  // Every generated mesh passes with margin (its worst angle is tens of degrees).
+  EXPECT_TRUE(validate_tet_mesh(*make_tet_box(0.15, 0.10, 0.07, 16, 12, 8)));
+  EXPECT_TRUE(validate_tet_mesh(*make_tet_cylinder(0.02, 0.05, 4, 12)));
+}
+
+// What the 1 deg threshold does not guard (docs/stability.md): a 1 m tet4 box of 3 × 3 × 3
+// cells clamped at its base, with the z = 2/3 plane of nodes moved down to 1/3 + h, so one
+// layer of tetrahedra flattens (mean-ratio quality 0.76 → 5e-5). CHOLMOD's reciprocal
+// condition estimate falls in proportion to h below 1 mm (3e-4, 3e-6, 3e-8 at h = 1e-3, 1e-5,
+// 1e-7 m), yet the static deflections converge: the solve is sound in double far below
+// anything validate_tet_mesh lets through, which refuses the layer from h = 1 mm (needles).
+TEST(ValidateTetMesh, SliverThresholdRationaleOnABox) {
+  double previous_shear = 0.0;
+  double previous_rcond = 0.0;
+  for (const double h : {1.0 / 3.0, 1e-2, 1e-3, 1e-5, 1e-7}) {
+    SCOPED_TRACE(h);
+    TetMesh mesh = *make_tet_box(1.0, 1.0, 1.0, 3, 3, 3);
+    for (Eigen::Index n = 0; n < mesh.nodes.rows(); ++n) {
+      if (std::abs(mesh.nodes(n, 2) - 2.0 / 3.0) < 1e-9) mesh.nodes(n, 2) = 1.0 / 3.0 + h;
+    }
+    double quality = 1.0;
+    for (Eigen::Index e = 0; e < mesh.tetrahedra.rows(); ++e) {
+      Eigen::Matrix<double, 4, 3> corners;
+      for (int c = 0; c < 4; ++c) corners.row(c) = mesh.nodes.row(mesh.tetrahedra(e, c));
+      quality = std::min(quality, tet_quality(corners));
+    }
+    auto assembled = assemble_tet(mesh, {1e6, 0.45, 1000.0},
+                                  {{mesh.node_sets.at("z0"), {true, true, true}}});
+    ASSERT_TRUE(assembled) << assembled.error().message;
+    auto solver = TetStaticSolver::create(*assembled);
+    ASSERT_TRUE(solver) << solver.error().message;
+    TetNodalLoads loads = TetNodalLoads::Zero(mesh.nodes.rows(), 3);
+    ASSERT_TRUE(add_tet_group_force(mesh, "z1", Eigen::Vector3d(10.0, 0.0, 0.0), loads));
+    const double shear = solver->solve_nodal(loads)->col(0).cwiseAbs().maxCoeff();
+    std::printf("layer %.0e m: worst quality %.2e, condition estimate %.2e, top shear %.7e m\n", h,
+                quality, solver->reciprocal_condition_estimate(), shear);
+    const double rcond = solver->reciprocal_condition_estimate();
+    if (h < 1e-3) {
+      // Two decades thinner: the estimate falls by about a hundred.
+      EXPECT_LT(rcond, 2e-2 * previous_rcond);
+      EXPECT_GT(rcond, 5e-3 * previous_rcond);
+    }
+    if (h == 1e-7) {
+      EXPECT_NEAR(shear, previous_shear, 1e-4 * shear);  // converged
+    }
+    previous_shear = shear;
+    previous_rcond = rcond;
+    const auto validated = validate_tet_mesh(mesh);
+    if (h <= 1e-3) {
+      ASSERT_FALSE(validated);
+      EXPECT_NE(validated.error().message.find("expected every dihedral and face angle >= 1 deg"),
+                std::string::npos)
+          << validated.error().message;
+    } else if (h > 1e-2) {
+      EXPECT_TRUE(validated) << validated.error().message;
+    }
+  }
+}
+
+TEST(ValidateTetMesh, CoincidentNodesAreRefused) {
+  auto box = make_tet_box(0.01, 0.01, 0.01, 2, 1, 1);
+  ASSERT_TRUE(box);
+  ASSERT_TRUE(validate_tet_mesh(*box));
+  // Give node 1 (the middle of the bottom front edge) a twin used by the second cell's
+  // tetrahedra: a crack through the mesh, each tetrahedron still well shaped.
+  TetMesh cracked = *box;
+  const int twin = static_cast<int>(cracked.nodes.rows());
+  cracked.nodes.conservativeResize(twin + 1, 3);
+  cracked.nodes.row(twin) = cracked.nodes.row(1);
+  for (Eigen::Index e = 6; e < cracked.tetrahedra.rows(); ++e) {
+    for (int c = 0; c < 4; ++c) {
+      if (cracked.tetrahedra(e, c) == 1) cracked.tetrahedra(e, c) = twin;
+    }
+  }
+  const std::string message = refusal(cracked);
+  EXPECT_NE(message.find("node " + std::to_string(twin) + " is a duplicate of node 1"),
+            std::string::npos)
+      << message;
 }
 
 }  // namespace

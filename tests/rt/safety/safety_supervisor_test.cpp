@@ -106,6 +106,48 @@ TEST(SafetySupervisor, ClampsMagnitudeAndLimitsRise) {
   EXPECT_NEAR(s.limit_force(1, Vec3(0, 1.0F, 0), kDt, 6).y(), 1.0F, 1e-6F);
 }
 
+TEST(SafetySupervisor, HugeFiniteForcesAreClampedAlongTheirDirection) {
+  // A finite request too large for a float norm (|F|² overflows beyond ~1.8e19 N) still ends as
+  // max_force_n along its own direction, not as zero (the direction is what the user feels).
+  for (const Vec3& requested : {Vec3(3e38F, -3e38F, 3e38F), Vec3(1e20F, 0.0F, 0.0F),
+                                Vec3(0.0F, 2e19F, 2e19F), Vec3(0.0F, 0.0F, 1e3F)}) {
+    SafetySupervisor s = armed_supervisor();
+    Vec3 f = Vec3::Zero();
+    for (int i = 0; i < 10; ++i) f = s.limit_force(0, requested, kDt, static_cast<std::uint64_t>(i));
+    EXPECT_TRUE(s.armed());
+    EXPECT_NEAR(f.norm(), 5.0F, 1e-5F) << requested.transpose();
+    EXPECT_NEAR(f.normalized().dot(requested.cast<double>().normalized().cast<float>()), 1.0F, 1e-6F)
+        << requested.transpose();
+  }
+}
+
+TEST(SafetySupervisor, NonPositiveOrNonFiniteTimeStepsNeverRaiseTheForce) {
+  // A negative dt used to turn the slew limit around: each cycle stepped |rate·dt| away from
+  // the request, past max_force_n (−4, −8, −12 N … for a 5 N request at 1 N per cycle).
+  SafetySupervisor s = armed_supervisor();
+  for (int i = 0; i < 20; ++i) {
+    const Vec3 f = s.limit_force(0, Vec3(5.0F, 0.0F, 0.0F), -4e-3F, static_cast<std::uint64_t>(i));
+    EXPECT_EQ(f, Vec3::Zero()) << "cycle " << i;
+  }
+  // dt = 0: nothing may rise in no time.
+  EXPECT_EQ(s.limit_force(0, Vec3(5.0F, 0.0F, 0.0F), 0.0F, 30), Vec3::Zero());
+  // A proper dt then rises at the slew rate again.
+  EXPECT_NEAR(s.limit_force(0, Vec3(5.0F, 0.0F, 0.0F), kDt, 31).x(), 1.0F, 1e-6F);
+  // A non-finite dt is a non-finite number: latched, zero force; and the passivity observer
+  // never integrates it (its energy would stay NaN and the check silently off).
+  EXPECT_EQ(s.limit_force(0, Vec3(5.0F, 0.0F, 0.0F), std::numeric_limits<float>::quiet_NaN(), 32),
+            Vec3::Zero());
+  EXPECT_EQ(s.first_fault(), Fault::non_finite);
+  SafetySupervisor observer = armed_supervisor();
+  observer.observe_power(0, Vec3(1.0F, 0.0F, 0.0F), Vec3(1.0F, 0.0F, 0.0F),
+                         std::numeric_limits<float>::infinity(), 1);
+  EXPECT_EQ(observer.first_fault(), Fault::non_finite);
+  SafetySupervisor negative = armed_supervisor();
+  negative.observe_power(0, Vec3(1.0F, 0.0F, 0.0F), Vec3(-1.0F, 0.0F, 0.0F), -1.0F, 1);
+  EXPECT_EQ(negative.delivered_energy_j(0), 0.0F);  // nothing integrated over negative time
+  EXPECT_TRUE(negative.armed());
+}
+
 TEST(SafetySupervisor, EncoderJumpLatches) {
   SafetySupervisor s = armed_supervisor();
   s.check_joint_step(false, 0.0F, 0.009F, kDt, 1);  // 9 rad/s < 10

@@ -23,6 +23,17 @@ inline constexpr int kTetDofsPerNode = 3;
 // A tetrahedron is degenerate when |6V| ≤ kDegenerateTetRatio × (longest edge)³ (a regular
 // tetrahedron has 6V ≈ 0.707 a³, so this only refuses flat or collapsed elements).
 inline constexpr double kDegenerateTetRatio = 1e-12;
+// validate_tet_mesh refuses a tetrahedron with a dihedral angle or a face angle below this
+// (degrees): a sliver (four nearly coplanar corners, dihedral angles near 0 and 180 deg), a
+// needle or a flat cap. The same threshold as the shell's kMinTriangleAngleDeg. Measured on a
+// 3 x 3 x 3 box with a squeezed layer (docs/stability.md): CHOLMOD's condition estimate falls
+// in proportion to the mean-ratio quality and the static solution stays accurate far below
+// the threshold; what it refuses is a meshing defect, named with its angle. The generated
+// meshes keep every angle above 30 deg.
+inline constexpr double kMinTetAngleDeg = 1.0;
+// Nodes closer than this fraction of the bounding-box diagonal are duplicates (as the shell's
+// kCoincidentNodeRatio): two coincident nodes split the mesh along a crack.
+inline constexpr double kCoincidentTetNodeRatio = 1e-12;
 // TetStaticSolver refuses a factor whose reciprocal condition estimate (CHOLMOD's
 // (min L_ii / max L_ii)², a cheap lower-quality estimate) is below this: K_ff is then singular
 // to rounding, i.e. a rigid-body motion was left free. A well-posed mesh of 10⁵ nodes stays
@@ -142,9 +153,11 @@ core::Expected<void> add_tet_surface_traction(const TetMesh& mesh, const std::st
 
 // Checks a tet mesh before use, naming the offending index (up to the first 8 problems, one per
 // line after the first): an empty mesh, non-finite coordinates, node indices out of range or
-// repeated within a tetrahedron, inverted (negative volume) or degenerate tetrahedra, duplicate
-// tetrahedra (same four nodes in any order), nodes no tetrahedron uses, and node/triangle/
-// tetrahedron sets with out-of-range indices.
+// repeated within a tetrahedron, inverted (negative volume) or degenerate tetrahedra, slivers
+// (a dihedral or face angle below kMinTetAngleDeg, the angle and where it is named), duplicate
+// tetrahedra (same four nodes in any order), duplicate nodes (coincident within
+// kCoincidentTetNodeRatio of the bounding-box diagonal), nodes no tetrahedron uses, and
+// node/triangle/tetrahedron sets with out-of-range indices.
 core::Expected<void> validate_tet_mesh(const TetMesh& mesh);
 
 }  // namespace trainer::model::offline

@@ -22,8 +22,10 @@
 // + 20 k_b/(m l0²) (bending chain: the interior stencil k_b/l0² [1 −4 6 −4 1] has spectral
 // radius 16; 20 covers the 2 k_b root hinge by Gershgorin). The stable substep is
 // 0.5 · 2/ω_max, and also ≤ m/b so the explicit damping never overshoots. Tension adds a
-// geometric stiffness T/l0 per segment that the bound ignores; it is below k_s while the
-// strain is below 100 %.
+// transverse geometric stiffness T/l = k_s (1 − l0/l) per segment, below k_s at any stretch
+// (a tip pulled with 20 EA stretches the chain 20-fold and settles); compression makes it
+// negative, −k_s (l0/l − 1), which grows without bound as a segment collapses: step() refuses
+// a segment crushed below kMinSegmentRatio · l0.
 //
 // Precision: float positions/velocities (SI), internal sums in float. Memory: every array is
 // carved from a core::Arena at create(); after create() everything is noexcept, heap-free and
@@ -241,9 +243,21 @@ class Catheter {
 
   // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps of eq. 28.
   // Refuses (state unchanged) a non-positive/non-finite period or one needing more substeps
-  // than the budget (invalid_argument). If any position or velocity becomes non-finite the
-  // state returns to the one before this call and numeric_error is returned.
+  // than the budget (invalid_argument). If any position or velocity becomes non-finite, or a
+  // segment ends shorter than kMinSegmentRatio of its rest length (crushed: a compression of
+  // 90 %, beyond the model — see below), the state returns to the one before this call and
+  // numeric_error is returned; the caller's loads decide whether the next step goes on.
   core::Status step(float period_s) noexcept;
+
+  // A segment compressed below this fraction of l0 ends step() with numeric_error. Measured
+  // (tests/model/runtime/stability_catheter_test.cpp, docs/stability.md): a clamped polymer
+  // catheter (EA 157 N) under a dead compressive tip load up to 0.1 EA folds over and settles,
+  // its shortest segment at 0.32 l0; from ~0.2 EA the fold crushes segments and the explicit
+  // chain pumps energy (kinetic energy to 2e3 J, segments stretched 23-fold, never
+  // non-finite). Refusing at 0.1 l0 stops that (peak kinetic energy within 1.4× the load's
+  // work); 0.25 l0 would hold it within the work but also refuses the violent, stable recoil
+  // of a 20 EA pull. Reaching it statically takes a compression of 0.9 EA.
+  static constexpr float kMinSegmentRatio = 0.1F;
 
   void reset() noexcept;  // rest shape, zero velocity, forces and holds cleared, clamp off
 
@@ -266,6 +280,9 @@ class Catheter {
   // false if the state became non-finite. `fraction` is this substep's share of the step
   // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
   bool substep(float dt_s, float fraction, float hold_step) noexcept;
+  // Back to the state at the start of step(), with no hold or contact forces reported.
+  void restore_saved_state() noexcept;
+  bool crushed() const noexcept;  // some segment shorter than kMinSegmentRatio · l0
 
   std::uint32_t count_ = 0;
   float mass_kg_ = 0.0F;

@@ -74,14 +74,17 @@ class SafetySupervisor {
   void check_joint_step(bool prismatic, float previous_position, float position, float dt_s,
                         std::uint64_t cycle) noexcept;
 
-  // Turns a requested tool force into the force that may be commanded this cycle.
-  // Zero when not armed; latches non_finite on NaN/Inf input.
+  // Turns a requested tool force into the force that may be commanded this cycle: at most
+  // max_force_n along the request's direction (any finite magnitude), rising by at most
+  // max_force_rate_n_per_s · dt_s (no rise when dt_s ≤ 0). Zero when not armed; latches
+  // non_finite on a NaN/Inf force or dt_s.
   Vec3 limit_force(std::size_t instrument, const Vec3& requested_n, float dt_s,
                    std::uint64_t cycle) noexcept;
 
   // Energy observer (Hannaford & Ryu): integrates the power the rendered force delivers to the
   // tool, W += F·v dt. A passive environment cannot deliver more than it absorbed, so W above
-  // the bound latches a passivity fault. Resets on arming.
+  // the bound latches a passivity fault. Resets on arming. A non-finite power or dt_s latches
+  // non_finite; dt_s ≤ 0 integrates nothing.
   void observe_power(std::size_t instrument, const Vec3& force_n, const Vec3& velocity_m_per_s,
                      float dt_s, std::uint64_t cycle) noexcept;
 
