@@ -1,5 +1,7 @@
 #include "trainer/app/haptic_app.hpp"
 
+#include "trainer/app/force_command.hpp"
+
 #include <bit>
 #include <limits>
 
@@ -516,37 +518,16 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
     }
   }
 
-  // The tip force (rigid objects, the duct) plus the catheter's forces on the shaft and jaws.
-  // The safety chain limits their total (magnitude and slew); every point force is scaled by
-  // the same factor so the efforts keep their proportions. Equal and opposite jaw squeezes do
-  // not add to the total: they are bounded per jaw by the catheter's max contact force.
-  Vec3 total = requested;
-  for (std::size_t k = 0; k < state.tool_force_count; ++k) total += state.tool_forces[k].force_n;
+  // The tip force (rigid objects, the ducts) plus the ray-based forces on the shaft and jaws
+  // (walls, catheters) through the safety chain to joint efforts (force_command.hpp).
   in_contact = in_contact || state.catheter_contact;
-  Vec3 force = safety_.limit_force(index, total, dt, timing.cycle_index);
-  safety_.observe_power(index, force, tip_velocity, dt, timing.cycle_index);
-  const float total_norm = total.norm();
-  const float scale = total_norm > 1e-9F ? std::min(1.0F, force.norm() / total_norm) : 1.0F;
-
-  kinematics::JointVector efforts{};
-  const kinematics::InstrumentPoint tip_point{kinematics::Segment::shaft,
-                                              (pose.tip_m - pose.shaft_start_m).dot(pose.direction)};
-  state.kinematics.add_point_force_efforts(pose, tip_point, scale * requested, efforts);
-  for (std::size_t k = 0; k < state.tool_force_count; ++k) {
-    const model::ToolForce& tool_force = state.tool_forces[k];
-    const auto segment = tool_force.segment == model::ToolSegment::shaft  ? kinematics::Segment::shaft
-                         : tool_force.segment == model::ToolSegment::jaw0 ? kinematics::Segment::jaw0
-                                                                          : kinematics::Segment::jaw1;
-    state.kinematics.add_point_force_efforts(pose, kinematics::InstrumentPoint{segment, tool_force.along_m},
-                                             scale * tool_force.force_n, efforts);
-  }
-  for (float effort : efforts) {
-    if (!std::isfinite(effort)) safety_.latch(safety::Fault::non_finite, timing.cycle_index);
-  }
-  if (!safety_.armed()) {
-    force.setZero();
-    efforts.fill(0.0F);
-  }
+  const InstrumentForces forces{
+      requested, std::span<const model::ToolForce>(state.tool_forces.data(), state.tool_force_count),
+      tip_velocity};
+  const ForceCommand command =
+      command_instrument(safety_, index, state.kinematics, pose, forces, dt, timing.cycle_index);
+  const Vec3& force = command.force_n;
+  const kinematics::JointVector& efforts = command.efforts;
   for (std::size_t j = 0; j < kJointCount; ++j) {
     commands_[state.first_channel + j].effort = efforts[j];
   }
