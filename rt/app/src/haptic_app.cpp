@@ -260,7 +260,10 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     InstrumentState& state = app->instruments_[i];
     state.kinematics = kinematics::TrocarKinematics(geometry);
     state.first_channel = device_index * kJointCount;
-    for (std::size_t j = 0; j < kJointCount; ++j) state.kinds[j] = device.joints[j].kind;
+    for (std::size_t j = 0; j < kJointCount; ++j) {
+      state.kinds[j] = device.joints[j].kind;
+      state.effort_limits[j] = effort_limit(config::joint_scale(device.joints[j]));
+    }
   }
 
   for (std::size_t k = 0; k < scene.objects.size(); ++k) {
@@ -525,9 +528,11 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
       requested, std::span<const model::ToolForce>(state.tool_forces.data(), state.tool_force_count),
       tip_velocity};
   const ForceCommand command =
-      command_instrument(safety_, index, state.kinematics, pose, forces, dt, timing.cycle_index);
+      command_instrument(safety_, index, state.kinematics, pose, forces, state.effort_limits, dt,
+                         timing.cycle_index);
   const Vec3& force = command.force_n;
   const kinematics::JointVector& efforts = command.efforts;
+  if (command.effort_limited) ++stats_.effort_limited_cycles;
   for (std::size_t j = 0; j < kJointCount; ++j) {
     commands_[state.first_channel + j].effort = efforts[j];
   }

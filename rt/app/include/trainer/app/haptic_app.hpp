@@ -158,6 +158,9 @@ struct AppStats {
   std::uint64_t hal_write_errors = 0;
   std::uint64_t invalid_encoder_cycles = 0;
   std::uint64_t saturated_actuator_cycles = 0;
+  // Instrument-cycles whose efforts the actuators' effort limits scaled or clamped
+  // (force_command.hpp); the drives then never clip.
+  std::uint64_t effort_limited_cycles = 0;
   std::uint64_t armed_cycles = 0;
   std::uint64_t model_step_errors = 0;
   std::array<InstrumentStats, kMaxInstruments> instruments{};
@@ -210,6 +213,8 @@ class HapticApp final : public loop::CycleTask {
   struct InstrumentState {
     kinematics::TrocarKinematics kinematics;
     std::array<hal::JointKind, 5> kinds{};  // for the encoder-jump limits
+    // Per joint, the largest effort its drive accepts (N·m, N): the device's current limits.
+    kinematics::JointVector effort_limits{};
     std::size_t first_channel = 0;
     kinematics::JointVector position{};
     kinematics::JointVector velocity{};
