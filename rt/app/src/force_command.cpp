@@ -9,12 +9,9 @@ namespace {
 
 kinematics::Segment kinematic_segment(model::ToolSegment segment) noexcept {
   switch (segment) {
-    case model::ToolSegment::jaw0:
-      return kinematics::Segment::jaw0;
-    case model::ToolSegment::jaw1:
-      return kinematics::Segment::jaw1;
-    case model::ToolSegment::shaft:
-      break;
+    case model::ToolSegment::jaw0: return kinematics::Segment::jaw0;
+    case model::ToolSegment::jaw1: return kinematics::Segment::jaw1;
+    case model::ToolSegment::shaft: break;
   }
   return kinematics::Segment::shaft;
 }
@@ -50,8 +47,8 @@ ForceCommand command_instrument(safety::SafetySupervisor& safety, std::size_t in
   // The tip as a point on the shaft: its distance from the shaft's start. It carries its own
   // force and whatever the chain changed beyond the common scale (zero unless the slew limit
   // turned the force), so the efforts' total is command.force_n.
-  const kinematics::InstrumentPoint tip_point{kinematics::Segment::shaft,
-                                              (pose.tip_m - pose.shaft_start_m).dot(pose.direction)};
+  const kinematics::InstrumentPoint tip_point{
+      kinematics::Segment::shaft, (pose.tip_m - pose.shaft_start_m).dot(pose.direction)};
   const Eigen::Vector3f tip_part = scale * forces.tip_force_n + (command.force_n - scale * total);
   kinematics.add_point_force_efforts(pose, tip_point, tip_part, command.efforts);
   for (const model::ToolForce& point : forces.point_forces) {

@@ -485,6 +485,12 @@ void HapticApp::sense_instrument(std::size_t index, const loop::CycleTiming& tim
       const float raw_rate = (position[j] - state.position[j]) / dt;
       state.velocity[j] += alpha * (raw_rate - state.velocity[j]);
     }
+  } else {
+    // The first reading has no previous one to check a step against; its numbers still must
+    // be finite (a NaN roll or grip would otherwise pass unseen while no jaw force uses it).
+    for (const float value : position) {
+      if (!std::isfinite(value)) safety_.latch(safety::Fault::non_finite, timing.cycle_index);
+    }
   }
   if (all_valid) {
     state.position = position;
@@ -610,15 +616,23 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
     stats_.phase_ns[static_cast<std::size_t>(phase)].record(now_ns - phase_start_ns);
     phase_start_ns = now_ns;
   };
-  if (reset_requested_.exchange(false, std::memory_order_acq_rel)) safety_.request_reset();
+  const bool reset_requested = reset_requested_.exchange(false, std::memory_order_acq_rel);
 
   safety::InputConditions conditions;
   const bool encoders_ok = read_inputs(timing, conditions);
+  // A reset clears only faults that have been reported: one raised since the last cycle
+  // published its state (the overrun streak between cycles, a lost device found by this
+  // cycle's reads) keeps the controller faulted, and the request is dropped as it is when an
+  // input is active. Otherwise the reset would clear it before any telemetry or log saw it, and
+  // arm on a device that failed this very cycle.
+  if (reset_requested && raised_fault_count() == raised_at_publish_) safety_.request_reset();
   const bool was_armed = safety_.armed();
   safety_.evaluate_inputs(conditions, timing.cycle_index);
   if (!was_armed && safety_.armed()) {
     log_.write(timing.wake_ns, core::LogLevel::info, "armed at cycle {}", timing.cycle_index);
     for (InstrumentState& state : instruments_) state.velocity.fill(0.0F);
+    // A fault latched from here on is new, even of a kind logged before the reset.
+    last_logged_faults_ = 0;
   }
   end_phase(CyclePhase::hal_read);
 
@@ -636,6 +650,13 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   const bool armed = safety_.armed();
   if (armed) ++stats_.armed_cycles;
   write_outputs(armed);
+  if (!armed) {
+    // Nothing was commanded: an instrument rendered before another one's fault reports so.
+    for (InstrumentTelemetry& out : instrument_out_) {
+      out.force_n = {};
+      out.joint_efforts = {};
+    }
+  }
 
   const std::uint32_t faults = safety_.latched_faults();
   const std::uint32_t new_faults = faults & ~last_logged_faults_;
@@ -648,6 +669,7 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
     }
   }
   last_logged_faults_ = faults;
+  raised_at_publish_ = raised_fault_count();
 
   publish(timing);
   end_phase(CyclePhase::hal_write);
@@ -1473,6 +1495,12 @@ std::vector<std::array<float, 3>> HapticApp::catheter_positions_m(const std::str
     for (const Vec3& p : catheters_[c].catheter->positions_m()) positions.push_back({p.x(), p.y(), p.z()});
   }
   return positions;
+}
+
+std::uint64_t HapticApp::raised_fault_count() const noexcept {
+  std::uint64_t total = 0;
+  for (const std::uint64_t count : safety_.fault_counts()) total += count;
+  return total;
 }
 
 void HapticApp::on_overrun_fault(std::uint32_t streak) noexcept {

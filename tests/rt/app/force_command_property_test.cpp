@@ -76,7 +76,7 @@ const std::filesystem::path kRepo{TRAINER_SOURCE_DIR};
 // oracles use (double, straight from the configuration).
 struct InstrumentModel {
   kinematics::TrocarKinematics kinematics;
-  JointVector effort_limits{};               // what command_instrument is given (float)
+  JointVector effort_limits{};                   // what command_instrument is given (float)
   std::array<double, kJointCount> max_effort{};  // the oracle's limit (double)
   std::array<bool, kJointCount> prismatic{};
   std::array<double, kJointCount> min_position{};
@@ -167,7 +167,9 @@ std::string describe(const Case& c, const safety::SafetyLimits& limits, std::uin
   return text.str();
 }
 
-bool finite(const Vec3& v) { return v.allFinite(); }
+bool finite(const Vec3& v) {
+  return v.allFinite();
+}
 
 // A force of a random kind: mostly zero or in the felt range, sometimes far beyond it, and in
 // hostile episodes sometimes with a NaN, Inf, FLT_MAX or subnormal component.
@@ -183,7 +185,8 @@ Vec3 random_force(property::Random& random, double felt_n, double hostile_probab
   } else {
     force = random.unit_vector() * static_cast<float>(random.log_uniform(1e4, 1e30));
   }
-  if (random.chance(hostile_probability)) force[static_cast<Eigen::Index>(random.index(3))] = random.hostile();
+  if (random.chance(hostile_probability))
+    force[static_cast<Eigen::Index>(random.index(3))] = random.hostile();
   return force;
 }
 
@@ -214,11 +217,11 @@ class ForceCommandProperty : public ::testing::Test {
 // instead of passing emptily.
 struct Coverage {
   std::uint64_t cases = 0;
-  std::uint64_t armed_cases = 0;            // armed after the case
-  std::uint64_t pushing_cases = 0;          // armed with a non-zero effort
-  std::uint64_t effort_limited_cases = 0;   // armed with some |effort| >= 99.9 % of its limit
-  std::uint64_t non_finite_cases = 0;       // some input non-finite
-  std::uint64_t outside_range_cases = 0;    // armed with a joint outside its range
+  std::uint64_t armed_cases = 0;           // armed after the case
+  std::uint64_t pushing_cases = 0;         // armed with a non-zero effort
+  std::uint64_t effort_limited_cases = 0;  // armed with some |effort| >= 99.9 % of its limit
+  std::uint64_t non_finite_cases = 0;      // some input non-finite
+  std::uint64_t outside_range_cases = 0;   // armed with a joint outside its range
   std::uint64_t episodes = 0;
   std::uint64_t arms = 0;
   std::array<std::uint64_t, safety::kFaultKinds> raised{};
@@ -226,7 +229,8 @@ struct Coverage {
 
 TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
   const std::uint64_t seed = property::seed_for("ForceCommandProperty", kDefaultSeed);
-  const std::uint64_t case_budget = property::env_u64("TRAINER_PROPERTY_CASES").value_or(kDefaultCases);
+  const std::uint64_t case_budget =
+      property::env_u64("TRAINER_PROPERTY_CASES").value_or(kDefaultCases);
   const std::optional<std::uint64_t> only_episode = property::env_u64("TRAINER_PROPERTY_EPISODE");
   Coverage coverage;
   std::string failure;
@@ -272,7 +276,7 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
     std::array<Vec3, kInstruments> previous_force{};
     for (Vec3& force : previous_force) force.setZero();
     safety::InputConditions inputs;
-    bool reset_next = true;  // the trainer's explicit reset at start
+    bool reset_next = true;         // the trainer's explicit reset at start
     std::uint64_t raise_total = 0;  // fault raises seen so far: any new one zeroes the slew memory
 
     const auto total_raises = [&] {
@@ -296,7 +300,8 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
       current.dt_s = static_cast<float>(dt_s);
 
       // Input conditions toggle now and then; resets come often while faulted.
-      if (random.chance(inputs.estop_active ? 0.3 : 0.01)) inputs.estop_active = !inputs.estop_active;
+      if (random.chance(inputs.estop_active ? 0.3 : 0.01))
+        inputs.estop_active = !inputs.estop_active;
       if (random.chance(inputs.drive_fault ? 0.3 : 0.01)) inputs.drive_fault = !inputs.drive_fault;
       if (random.chance(inputs.enable_held ? 0.01 : 0.3)) inputs.enable_held = !inputs.enable_held;
       const bool reset = reset_next || random.chance(supervisor.armed() ? 0.005 : 0.25);
@@ -314,9 +319,8 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
       current.latched_before = latched_before_inputs;
       current.latched_after = latched;
       if ((supervisor.arm_count() != arms_before) != expect_arm) {
-        fail(std::string("reset ") + (expect_arm ? "not honoured" : "honoured") +
-             " (requested " + std::to_string(reset) + ", inputs clear " +
-             std::to_string(inputs_clear) + ")");
+        fail(std::string("reset ") + (expect_arm ? "not honoured" : "honoured") + " (requested " +
+             std::to_string(reset) + ", inputs clear " + std::to_string(inputs_clear) + ")");
       }
       if (expect_arm ? latched != 0 : (latched & latched_before_inputs) != latched_before_inputs) {
         fail("latched faults lost without an explicit reset, or left after one");
@@ -368,7 +372,8 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
           if (motion < 0.86) {
             joints[j] += static_cast<float>(random.uniform(-0.95, 0.95) * speed * dt_s);
           } else if (motion < 0.90 && j == one) {
-            joints[j] += static_cast<float>(random.sign() * random.log_uniform(1.01, 1e3) * speed * dt_s);
+            joints[j] +=
+                static_cast<float>(random.sign() * random.log_uniform(1.01, 1e3) * speed * dt_s);
           } else if (motion < 0.94) {
             joints[j] = random.uniform_float(model.min_position[j], model.max_position[j]);
           } else if (motion < 0.98) {
@@ -385,10 +390,11 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
         for (std::size_t j = 0; j < kJointCount; ++j) {
           const float speed = model.prismatic[j] ? limits.max_insertion_speed_m_per_s
                                                  : limits.max_joint_speed_rad_per_s;
-          supervisor.check_joint_step(model.prismatic[j], positions[i][j], joints[j],
-                                      current.dt_s, cycle);
+          supervisor.check_joint_step(model.prismatic[j], positions[i][j], joints[j], current.dt_s,
+                                      cycle);
           non_finite_position = non_finite_position || !std::isfinite(joints[j]);
-          const double step = std::fabs(static_cast<double>(joints[j]) - static_cast<double>(positions[i][j]));
+          const double step =
+              std::fabs(static_cast<double>(joints[j]) - static_cast<double>(positions[i][j]));
           const double allowed = static_cast<double>(speed) * static_cast<double>(current.dt_s);
           if (std::isfinite(step)) {
             expect_jump = expect_jump || step > allowed * (1.0 + 1e-5);
@@ -403,8 +409,8 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
                                                   : limits.max_joint_speed_rad_per_s;
           current.joint_rates[j] = static_cast<float>(random.uniform(-2.0, 2.0) * speed);
         }
-        current.tip_velocity =
-            kinematics::TrocarKinematics::point_velocity(pose, pose.insertion_m, current.joint_rates);
+        current.tip_velocity = kinematics::TrocarKinematics::point_velocity(pose, pose.insertion_m,
+                                                                            current.joint_rates);
         if (random.chance(hostile_probability)) {
           current.tip_velocity[static_cast<Eigen::Index>(random.index(3))] = random.hostile();
         }
@@ -432,13 +438,15 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
         if (count + 2 <= kMaxPointForces && random.chance(0.15)) {
           // A jaw squeeze: equal and opposite across the jaws, off the total.
           const float along = random.uniform_float(0.0, model.jaw_length_m);
-          const Vec3 squeeze = pose.opening_direction * static_cast<float>(random.log_uniform(1e-3, 100.0));
+          const Vec3 squeeze =
+              pose.opening_direction * static_cast<float>(random.log_uniform(1e-3, 100.0));
           current.points[current.point_count++] = {model::ToolSegment::jaw0, along, -squeeze};
           current.points[current.point_count++] = {model::ToolSegment::jaw1, along, squeeze};
         }
         if (current.point_count < kMaxPointForces && random.chance(0.04)) {
           // Huge and cancelling: a total near zero from parts beyond any limit.
-          const Vec3 huge = random.unit_vector() * static_cast<float>(random.log_uniform(1e3, 1e30));
+          const Vec3 huge =
+              random.unit_vector() * static_cast<float>(random.log_uniform(1e3, 1e30));
           current.tip_force = huge;
           current.points[current.point_count++] = {
               model::ToolSegment::shaft,
@@ -482,36 +490,41 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
         }
         // Faults: latched by what the inputs hold, never lost within a cycle.
         const std::uint32_t after = supervisor.latched_faults();
-        if ((after & current.latched_before) != current.latched_before) fail("a latched fault cleared");
+        if ((after & current.latched_before) != current.latched_before)
+          fail("a latched fault cleared");
         if (non_finite_any && armed) fail("non-finite input, still armed");
         if ((non_finite_force || non_finite_position) &&
             (after & safety::bit(safety::Fault::non_finite)) == 0) {
           fail("non-finite force, point or joint position, non_finite not latched");
         }
-        if (expect_jump && !jump_borderline && (after & safety::bit(safety::Fault::encoder_jump)) == 0) {
+        if (expect_jump && !jump_borderline &&
+            (after & safety::bit(safety::Fault::encoder_jump)) == 0) {
           fail("joint step beyond the speed limit, encoder_jump not latched");
         }
         if (armed) {
           ++coverage.armed_cases;
           const float force_norm = command.force_n.norm();
-          if (!(force_norm <= limits.max_force_n * (1.0F + 1e-5F))) fail("force beyond max_force_n");
+          if (!(force_norm <= limits.max_force_n * (1.0F + 1e-5F)))
+            fail("force beyond max_force_n");
           // Slew: a rise or a turn by at most rate × dt; a pure decrease is always allowed.
           const Vec3& last = previous_force[i];
           const bool decreasing = command.force_n.squaredNorm() <= last.squaredNorm() &&
                                   command.force_n.dot(last) >= 0.0F;
           const double max_step = static_cast<double>(limits.max_force_rate_n_per_s) * dt_s;
-          if (!decreasing && !(static_cast<double>((command.force_n - last).norm()) <=
-                               max_step * (1.0 + 1e-4) + 1e-5 * static_cast<double>(limits.max_force_n))) {
+          if (!decreasing &&
+              !(static_cast<double>((command.force_n - last).norm()) <=
+                max_step * (1.0 + 1e-4) + 1e-5 * static_cast<double>(limits.max_force_n))) {
             fail("force changed faster than max_force_rate_n_per_s");
           }
           // The insertion effort renders the reported force (d̂·F for any point).
-          double gross_n = static_cast<double>(current.tip_force.norm()) + 2.0 * static_cast<double>(force_norm);
+          double gross_n =
+              static_cast<double>(current.tip_force.norm()) + 2.0 * static_cast<double>(force_norm);
           for (std::size_t k = 0; k < current.point_count; ++k) {
             gross_n += static_cast<double>(current.points[k].force_n.norm());
           }
           const double rendered = static_cast<double>(pose.direction.dot(command.force_n));
-          if (!(std::fabs(static_cast<double>(command.efforts[kinematics::kInsertion]) - rendered) <=
-                1e-5 * gross_n + 1e-6)) {
+          if (!(std::fabs(static_cast<double>(command.efforts[kinematics::kInsertion]) -
+                          rendered) <= 1e-5 * gross_n + 1e-6)) {
             fail("insertion effort does not render the commanded force (expected " +
                  property::number_text(rendered) + ")");
           }
@@ -524,9 +537,11 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
           bool outside = false;
           for (std::size_t j = 0; j < kJointCount; ++j) {
             pushing = pushing || command.efforts[j] != 0.0F;
-            at_limit = at_limit || std::fabs(static_cast<double>(command.efforts[j])) >= 0.999 * model.max_effort[j];
+            at_limit = at_limit || std::fabs(static_cast<double>(command.efforts[j])) >=
+                                       0.999 * model.max_effort[j];
             const double position = static_cast<double>(joints[j]);
-            outside = outside || position < model.min_position[j] || position > model.max_position[j];
+            outside =
+                outside || position < model.min_position[j] || position > model.max_position[j];
           }
           if (pushing) ++coverage.pushing_cases;
           if (at_limit) ++coverage.effort_limited_cases;
@@ -545,17 +560,18 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   ASSERT_TRUE(failure.empty()) << failure;
 
-  std::printf("ForceCommandProperty: %llu cases in %llu episodes, %.2f s; armed %llu, pushing %llu, "
-              "at an effort limit %llu, armed outside the joint range %llu, non-finite inputs %llu, "
-              "arms %llu\n",
-              static_cast<unsigned long long>(coverage.cases),
-              static_cast<unsigned long long>(coverage.episodes), seconds,
-              static_cast<unsigned long long>(coverage.armed_cases),
-              static_cast<unsigned long long>(coverage.pushing_cases),
-              static_cast<unsigned long long>(coverage.effort_limited_cases),
-              static_cast<unsigned long long>(coverage.outside_range_cases),
-              static_cast<unsigned long long>(coverage.non_finite_cases),
-              static_cast<unsigned long long>(coverage.arms));
+  std::printf(
+      "ForceCommandProperty: %llu cases in %llu episodes, %.2f s; armed %llu, pushing %llu, "
+      "at an effort limit %llu, armed outside the joint range %llu, non-finite inputs %llu, "
+      "arms %llu\n",
+      static_cast<unsigned long long>(coverage.cases),
+      static_cast<unsigned long long>(coverage.episodes), seconds,
+      static_cast<unsigned long long>(coverage.armed_cases),
+      static_cast<unsigned long long>(coverage.pushing_cases),
+      static_cast<unsigned long long>(coverage.effort_limited_cases),
+      static_cast<unsigned long long>(coverage.outside_range_cases),
+      static_cast<unsigned long long>(coverage.non_finite_cases),
+      static_cast<unsigned long long>(coverage.arms));
   std::printf("  faults raised:");
   for (std::size_t kind = 0; kind < safety::kFaultKinds; ++kind) {
     std::printf(" %s %llu", safety::to_string(static_cast<safety::Fault>(1U << kind)),

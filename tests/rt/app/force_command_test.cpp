@@ -71,8 +71,8 @@ TEST(ForceCommand, WithinLimitsTheEffortsAreJacobianTransposeOfTheForce) {
   const auto pose = kinematics.forward({0.2F, -0.1F, 0.1F, 0.3F, 0.2F});
   auto supervisor = armed();
   const Vec3 force(1.0F, -2.0F, 0.5F);  // below the 4 N slew step: passes whole
-  const ForceCommand command =
-      command_instrument(supervisor, 0, kinematics, pose, {force, {}, Vec3::Zero()}, kLimits, kDt, 1);
+  const ForceCommand command = command_instrument(supervisor, 0, kinematics, pose,
+                                                  {force, {}, Vec3::Zero()}, kLimits, kDt, 1);
   EXPECT_FALSE(command.effort_limited);
   EXPECT_TRUE(command.force_n.isApprox(force, 1e-6F));
   const JointVector expected = tip_efforts(kinematics, pose, force);
@@ -88,8 +88,8 @@ TEST(ForceCommand, ALongLeverScalesTheWrenchJointsTogetherKeepingTheForcesDirect
   const auto pose = kinematics.forward({0.0F, 0.0F, 0.25F, 0.0F, 0.0F});
   auto supervisor = armed(8.0F, 1e6F);
   const Vec3 requested(0.0F, 7.5F, -2.0F);
-  const ForceCommand command = command_instrument(
-      supervisor, 0, kinematics, pose, {requested, {}, Vec3::Zero()}, kLimits, kDt, 1);
+  const ForceCommand command = command_instrument(supervisor, 0, kinematics, pose,
+                                                  {requested, {}, Vec3::Zero()}, kLimits, kDt, 1);
   EXPECT_TRUE(command.effort_limited);
   const JointVector unlimited = tip_efforts(kinematics, pose, requested);
   const float worst = std::fabs(unlimited[kinematics::kPitch]) / kLimits[kinematics::kPitch];
@@ -145,11 +145,11 @@ TEST(ForceCommand, TheGripIsClampedOnItsOwn) {
   const auto pose = kinematics.forward({0.0F, 0.0F, 0.1F, 0.0F, 0.3F});
   auto supervisor = armed();
   const Vec3 squeeze = 200.0F * pose.opening_direction;
-  const std::array<model::ToolForce, 2> jaws{{{model::ToolSegment::jaw0, 0.015F, -squeeze},
-                                              {model::ToolSegment::jaw1, 0.015F, squeeze}}};
+  const std::array<model::ToolForce, 2> jaws{
+      {{model::ToolSegment::jaw0, 0.015F, -squeeze}, {model::ToolSegment::jaw1, 0.015F, squeeze}}};
   const Vec3 tip(0.0F, 0.0F, 1.0F);
-  const ForceCommand command =
-      command_instrument(supervisor, 0, kinematics, pose, {tip, jaws, Vec3::Zero()}, kLimits, kDt, 1);
+  const ForceCommand command = command_instrument(supervisor, 0, kinematics, pose,
+                                                  {tip, jaws, Vec3::Zero()}, kLimits, kDt, 1);
   EXPECT_TRUE(command.effort_limited);
   EXPECT_NEAR(std::fabs(command.efforts[kinematics::kGrip]), kLimits[kinematics::kGrip], 1e-6F);
   // The tool's force is untouched by the grip's limit.
@@ -164,8 +164,8 @@ TEST(ForceCommand, HugeCancellingForcesStayWithinTheLimits) {
   auto supervisor = armed();
   const Vec3 huge(1e30F, 0.0F, 0.0F);
   const std::array<model::ToolForce, 1> shaft{{{model::ToolSegment::shaft, 0.05F, -huge}}};
-  const ForceCommand command =
-      command_instrument(supervisor, 0, kinematics, pose, {huge, shaft, Vec3::Zero()}, kLimits, kDt, 1);
+  const ForceCommand command = command_instrument(supervisor, 0, kinematics, pose,
+                                                  {huge, shaft, Vec3::Zero()}, kLimits, kDt, 1);
   EXPECT_TRUE(supervisor.armed());
   for (std::size_t j = 0; j < kinematics::kJointCount; ++j) {
     EXPECT_TRUE(std::isfinite(command.efforts[j]));

@@ -37,7 +37,7 @@ namespace trainer::app {
 // What acts on one instrument this cycle (trainer frame, N; velocity in m/s).
 struct InstrumentForces {
   Eigen::Vector3f tip_force_n = Eigen::Vector3f::Zero();  // at the closed-jaw tip
-  std::span<const model::ToolForce> point_forces;  // on the shaft and jaws, at their points
+  std::span<const model::ToolForce> point_forces;         // on the shaft and jaws, at their points
   Eigen::Vector3f tip_velocity_m_per_s = Eigen::Vector3f::Zero();  // for the passivity observer
 };
 

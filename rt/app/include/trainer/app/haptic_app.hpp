@@ -170,6 +170,10 @@ struct AppStats {
 };
 
 class HapticApp final : public loop::CycleTask {
+  // The property test (tests/rt/app/haptic_app_property_test.cpp) puts the models in random
+  // states through their own public calls; nothing else reaches inside.
+  friend class HapticAppTestAccess;
+
  public:
   // Consecutive HAL read/write errors tolerated (the cycle holds the last good state)
   // before the device is declared lost and a fault latched.
@@ -355,6 +359,7 @@ class HapticApp final : public loop::CycleTask {
   void write_outputs(bool armed) noexcept;
   void publish(const loop::CycleTiming& timing) noexcept;
   void zero_commands() noexcept;
+  std::uint64_t raised_fault_count() const noexcept;  // the supervisor's raises of every kind
 
   core::LogRing& log_;
   core::TripleBuffer<TelemetrySnapshot>& telemetry_;
@@ -415,6 +420,8 @@ class HapticApp final : public loop::CycleTask {
   std::uint32_t read_error_streak_ = 0;
   std::uint32_t write_error_streak_ = 0;
   std::uint32_t last_logged_faults_ = 0;
+  // Faults raised (every kind, repeats included) when the last cycle published its state.
+  std::uint64_t raised_at_publish_ = 0;
   std::atomic<bool> reset_requested_{false};
 };
 
