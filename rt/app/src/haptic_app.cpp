@@ -1,5 +1,7 @@
 #include "trainer/app/haptic_app.hpp"
 
+#include "trainer/app/force_command.hpp"
+
 #include <bit>
 #include <limits>
 
@@ -257,7 +259,10 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
     InstrumentState& state = app->instruments_[i];
     state.kinematics = kinematics::TrocarKinematics(geometry);
     state.first_channel = device_index * kJointCount;
-    for (std::size_t j = 0; j < kJointCount; ++j) state.kinds[j] = device.joints[j].kind;
+    for (std::size_t j = 0; j < kJointCount; ++j) {
+      state.kinds[j] = device.joints[j].kind;
+      state.effort_limits[j] = effort_limit(config::joint_scale(device.joints[j]));
+    }
   }
 
   for (std::size_t k = 0; k < scene.objects.size(); ++k) {
@@ -479,6 +484,12 @@ void HapticApp::sense_instrument(std::size_t index, const loop::CycleTiming& tim
       const float raw_rate = (position[j] - state.position[j]) / dt;
       state.velocity[j] += alpha * (raw_rate - state.velocity[j]);
     }
+  } else {
+    // The first reading has no previous one to check a step against; its numbers still must
+    // be finite (a NaN roll or grip would otherwise pass unseen while no jaw force uses it).
+    for (const float value : position) {
+      if (!std::isfinite(value)) safety_.latch(safety::Fault::non_finite, timing.cycle_index);
+    }
   }
   if (all_valid) {
     state.position = position;
@@ -515,37 +526,18 @@ void HapticApp::render_instrument(std::size_t index, const loop::CycleTiming& ti
     }
   }
 
-  // The tip force (rigid objects, the duct) plus the catheter's forces on the shaft and jaws.
-  // The safety chain limits their total (magnitude and slew); every point force is scaled by
-  // the same factor so the efforts keep their proportions. Equal and opposite jaw squeezes do
-  // not add to the total: they are bounded per jaw by the catheter's max contact force.
-  Vec3 total = requested;
-  for (std::size_t k = 0; k < state.tool_force_count; ++k) total += state.tool_forces[k].force_n;
+  // The tip force (rigid objects, the ducts) plus the ray-based forces on the shaft and jaws
+  // (walls, catheters) through the safety chain to joint efforts (force_command.hpp).
   in_contact = in_contact || state.catheter_contact;
-  Vec3 force = safety_.limit_force(index, total, dt, timing.cycle_index);
-  safety_.observe_power(index, force, tip_velocity, dt, timing.cycle_index);
-  const float total_norm = total.norm();
-  const float scale = total_norm > 1e-9F ? std::min(1.0F, force.norm() / total_norm) : 1.0F;
-
-  kinematics::JointVector efforts{};
-  const kinematics::InstrumentPoint tip_point{kinematics::Segment::shaft,
-                                              (pose.tip_m - pose.shaft_start_m).dot(pose.direction)};
-  state.kinematics.add_point_force_efforts(pose, tip_point, scale * requested, efforts);
-  for (std::size_t k = 0; k < state.tool_force_count; ++k) {
-    const model::ToolForce& tool_force = state.tool_forces[k];
-    const auto segment = tool_force.segment == model::ToolSegment::shaft  ? kinematics::Segment::shaft
-                         : tool_force.segment == model::ToolSegment::jaw0 ? kinematics::Segment::jaw0
-                                                                          : kinematics::Segment::jaw1;
-    state.kinematics.add_point_force_efforts(pose, kinematics::InstrumentPoint{segment, tool_force.along_m},
-                                             scale * tool_force.force_n, efforts);
-  }
-  for (float effort : efforts) {
-    if (!std::isfinite(effort)) safety_.latch(safety::Fault::non_finite, timing.cycle_index);
-  }
-  if (!safety_.armed()) {
-    force.setZero();
-    efforts.fill(0.0F);
-  }
+  const InstrumentForces forces{
+      requested, std::span<const model::ToolForce>(state.tool_forces.data(), state.tool_force_count),
+      tip_velocity};
+  const ForceCommand command =
+      command_instrument(safety_, index, state.kinematics, pose, forces, state.effort_limits, dt,
+                         timing.cycle_index);
+  const Vec3& force = command.force_n;
+  const kinematics::JointVector& efforts = command.efforts;
+  if (command.effort_limited) ++stats_.effort_limited_cycles;
   for (std::size_t j = 0; j < kJointCount; ++j) {
     commands_[state.first_channel + j].effort = efforts[j];
   }
@@ -623,15 +615,23 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
     stats_.phase_ns[static_cast<std::size_t>(phase)].record(now_ns - phase_start_ns);
     phase_start_ns = now_ns;
   };
-  if (reset_requested_.exchange(false, std::memory_order_acq_rel)) safety_.request_reset();
+  const bool reset_requested = reset_requested_.exchange(false, std::memory_order_acq_rel);
 
   safety::InputConditions conditions;
   const bool encoders_ok = read_inputs(timing, conditions);
+  // A reset clears only faults that have been reported: one raised since the last cycle
+  // published its state (the overrun streak between cycles, a lost device found by this
+  // cycle's reads) keeps the controller faulted, and the request is dropped as it is when an
+  // input is active. Otherwise the reset would clear it before any telemetry or log saw it, and
+  // arm on a device that failed this very cycle.
+  if (reset_requested && raised_fault_count() == raised_at_publish_) safety_.request_reset();
   const bool was_armed = safety_.armed();
   safety_.evaluate_inputs(conditions, timing.cycle_index);
   if (!was_armed && safety_.armed()) {
     log_.write(timing.wake_ns, core::LogLevel::info, "armed at cycle {}", timing.cycle_index);
     for (InstrumentState& state : instruments_) state.velocity.fill(0.0F);
+    // A fault latched from here on is new, even of a kind logged before the reset.
+    last_logged_faults_ = 0;
   }
   end_phase(CyclePhase::hal_read);
 
@@ -649,6 +649,13 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   const bool armed = safety_.armed();
   if (armed) ++stats_.armed_cycles;
   write_outputs(armed);
+  if (!armed) {
+    // Nothing was commanded: an instrument rendered before another one's fault reports so.
+    for (InstrumentTelemetry& out : instrument_out_) {
+      out.force_n = {};
+      out.joint_efforts = {};
+    }
+  }
 
   const std::uint32_t faults = safety_.latched_faults();
   const std::uint32_t new_faults = faults & ~last_logged_faults_;
@@ -661,6 +668,7 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
     }
   }
   last_logged_faults_ = faults;
+  raised_at_publish_ = raised_fault_count();
 
   publish(timing);
   end_phase(CyclePhase::hal_write);
@@ -1486,6 +1494,12 @@ std::vector<std::array<float, 3>> HapticApp::catheter_positions_m(const std::str
     for (const Vec3& p : catheters_[c].catheter->positions_m()) positions.push_back({p.x(), p.y(), p.z()});
   }
   return positions;
+}
+
+std::uint64_t HapticApp::raised_fault_count() const noexcept {
+  std::uint64_t total = 0;
+  for (const std::uint64_t count : safety_.fault_counts()) total += count;
+  return total;
 }
 
 void HapticApp::on_overrun_fault(std::uint32_t streak) noexcept {

@@ -199,6 +199,7 @@ nlohmann::json report_json(const RunResult& r) {
         {"arm_count", r.arm_count},
         {"force_clamped_cycles", r.force_clamped_cycles},
         {"force_slew_limited_cycles", r.force_slew_limited_cycles},
+        {"effort_limited_cycles", r.app.effort_limited_cycles},
         {"outputs_zeroed_at_exit", r.outputs_zeroed_at_exit}}},
       {"hal_errors",
        {{"read", r.app.hal_read_errors},

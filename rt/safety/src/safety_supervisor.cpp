@@ -110,6 +110,13 @@ Vec3 SafetySupervisor::limit_force(std::size_t instrument, const Vec3& requested
   return force;
 }
 
+void SafetySupervisor::reduce_last_force(std::size_t instrument, const Vec3& rendered_n) noexcept {
+  if (instrument >= instrument_count_ || !armed() || !rendered_n.allFinite()) return;
+  if (rendered_n.squaredNorm() <= last_force_n_[instrument].squaredNorm()) {
+    last_force_n_[instrument] = rendered_n;
+  }
+}
+
 void SafetySupervisor::observe_power(std::size_t instrument, const Vec3& force_n,
                                      const Vec3& velocity_m_per_s, float dt_s,
                                      std::uint64_t cycle) noexcept {

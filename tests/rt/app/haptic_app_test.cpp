@@ -4,6 +4,9 @@
 
 #include <cmath>
 #include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -145,6 +148,44 @@ TEST_F(WallSceneFixture, ReadFailuresBeyondToleranceLatchDeviceLost) {
   EXPECT_EQ(total_applied_effort(), 0.0);
 }
 
+TEST_F(WallSceneFixture, AResetDoesNotClearAFaultTheSameCycleRaised) {
+  app_->request_reset();
+  run_until_time(1.0);
+  device_->inject_read_failures(HapticApp::kToleratedErrorStreak + 3);
+  for (std::uint32_t i = 0; i < HapticApp::kToleratedErrorStreak + 1; ++i) step();
+  ASSERT_EQ(app_->safety().first_fault(), safety::Fault::device_lost);
+  // A reset while the reads still fail: the cycle's read raises device_lost again, and the
+  // reset must not clear it (nor arm on a failing device).
+  app_->request_reset();
+  step();
+  EXPECT_FALSE(app_->safety().armed());
+  ASSERT_TRUE(telemetry_.update());
+  EXPECT_TRUE(telemetry_.latest().latched_faults & safety::bit(safety::Fault::device_lost));
+  EXPECT_EQ(total_applied_effort(), 0.0);
+  // The request was dropped: the device recovering does not arm by itself; a new reset does.
+  for (int i = 0; i < 10; ++i) step();
+  EXPECT_FALSE(app_->safety().armed());
+  app_->request_reset();
+  step();
+  EXPECT_TRUE(app_->safety().armed());
+}
+
+TEST_F(WallSceneFixture, AResetDoesNotClearAnOverrunFaultNotYetPublished) {
+  app_->request_reset();
+  run_until_time(1.0);
+  // The loop raises the overrun-streak fault between two cycles; a reset arriving for the
+  // next cycle must leave it latched so that cycle publishes it.
+  app_->on_overrun_fault(10);
+  app_->request_reset();
+  step();
+  EXPECT_FALSE(app_->safety().armed());
+  ASSERT_TRUE(telemetry_.update());
+  EXPECT_TRUE(telemetry_.latest().latched_faults & safety::bit(safety::Fault::overrun_streak));
+  app_->request_reset();
+  step();
+  EXPECT_TRUE(app_->safety().armed());
+}
+
 TEST_F(WallSceneFixture, StuckEncoderDoesNotProduceForceJumpsAndJumpLatches) {
   app_->request_reset();
   run_until_time(6.5);
@@ -156,6 +197,40 @@ TEST_F(WallSceneFixture, StuckEncoderDoesNotProduceForceJumpsAndJumpLatches) {
   step();
   EXPECT_EQ(app_->safety().first_fault(), safety::Fault::encoder_jump);
   EXPECT_EQ(total_applied_effort(), 0.0);
+}
+
+// The "fault latched" records the cycle wrote, by fault name.
+std::vector<std::string> drain_fault_records(core::LogRing& log) {
+  std::vector<std::string> faults;
+  core::LogRecord record;
+  while (log.pop(record)) {
+    if (std::string_view(record.format) == "fault latched: {} at cycle {}") {
+      faults.emplace_back(record.args[0].s);
+    }
+  }
+  return faults;
+}
+
+TEST_F(WallSceneFixture, AFaultLatchedInTheCycleThatArmsIsLoggedAgain) {
+  app_->request_reset();
+  run_until_time(6.5);
+  ASSERT_TRUE(device_->inject_stuck_encoder(2, true));
+  run_until_time(9.5);
+  ASSERT_TRUE(device_->inject_stuck_encoder(2, false));
+  step();
+  ASSERT_EQ(app_->safety().first_fault(), safety::Fault::encoder_jump);
+  EXPECT_EQ(drain_fault_records(log_), std::vector<std::string>{"encoder_jump"});
+  // Stuck again while faulted; the reset arms and the same cycle's reading jumps again.
+  ASSERT_TRUE(device_->inject_stuck_encoder(2, true));
+  run_until_time(11.0);
+  (void)drain_fault_records(log_);
+  ASSERT_TRUE(device_->inject_stuck_encoder(2, false));
+  app_->request_reset();
+  const std::uint32_t arms = app_->safety().arm_count();
+  step();
+  ASSERT_EQ(app_->safety().arm_count(), arms + 1);
+  EXPECT_EQ(app_->safety().first_fault(), safety::Fault::encoder_jump);
+  EXPECT_EQ(drain_fault_records(log_), std::vector<std::string>{"encoder_jump"});
 }
 
 TEST_F(WallSceneFixture, ShutdownZeroesAndDisablesOutputs) {

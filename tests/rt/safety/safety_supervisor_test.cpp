@@ -148,6 +148,27 @@ TEST(SafetySupervisor, NonPositiveOrNonFiniteTimeStepsNeverRaiseTheForce) {
   EXPECT_TRUE(negative.armed());
 }
 
+TEST(SafetySupervisor, ReduceLastForceStartsTheNextSlewFromTheRenderedForce) {
+  SafetySupervisor s = armed_supervisor();
+  Vec3 f = Vec3::Zero();
+  for (int i = 0; i < 10; ++i) f = s.limit_force(0, Vec3(0, 0, 4.0F), kDt, 1);
+  ASSERT_NEAR(f.z(), 4.0F, 1e-6F);
+  // The actuators rendered only 1 N of the 4 N allowed: the next rise starts from 1 N.
+  s.reduce_last_force(0, Vec3(0, 0, 1.0F));
+  EXPECT_NEAR(s.limit_force(0, Vec3(0, 0, 4.0F), kDt, 2).z(), 2.0F, 1e-5F);
+  // Never a raise, nothing non-finite, nothing while faulted.
+  s.reduce_last_force(0, Vec3(0, 0, 3.0F));
+  EXPECT_NEAR(s.limit_force(0, Vec3(0, 0, 4.0F), kDt, 3).z(), 3.0F, 1e-5F);
+  s.reduce_last_force(0, Vec3(std::numeric_limits<float>::quiet_NaN(), 0, 0));
+  EXPECT_TRUE(s.armed());
+  EXPECT_NEAR(s.limit_force(0, Vec3(0, 0, 4.0F), kDt, 4).z(), 4.0F, 1e-5F);
+  s.latch(Fault::estop, 5);
+  s.reduce_last_force(0, Vec3(0, 0, 1.0F));
+  s.request_reset();
+  ASSERT_TRUE(s.evaluate_inputs({}, 6));
+  EXPECT_NEAR(s.limit_force(0, Vec3(0, 0, 4.0F), kDt, 6).z(), 1.0F, 1e-5F);  // from zero
+}
+
 TEST(SafetySupervisor, EncoderJumpLatches) {
   SafetySupervisor s = armed_supervisor();
   s.check_joint_step(false, 0.0F, 0.009F, kDt, 1);  // 9 rad/s < 10

@@ -163,6 +163,9 @@ struct AppStats {
   std::uint64_t hal_write_errors = 0;
   std::uint64_t invalid_encoder_cycles = 0;
   std::uint64_t saturated_actuator_cycles = 0;
+  // Instrument-cycles whose efforts the actuators' effort limits scaled or clamped
+  // (force_command.hpp); the drives then never clip.
+  std::uint64_t effort_limited_cycles = 0;
   std::uint64_t armed_cycles = 0;
   std::uint64_t model_step_errors = 0;
   std::array<InstrumentStats, kMaxInstruments> instruments{};
@@ -172,6 +175,10 @@ struct AppStats {
 };
 
 class HapticApp final : public loop::CycleTask {
+  // The property test (tests/rt/app/haptic_app_property_test.cpp) puts the models in random
+  // states through their own public calls; nothing else reaches inside.
+  friend class HapticAppTestAccess;
+
  public:
   // Consecutive HAL read/write errors tolerated (the cycle holds the last good state)
   // before the device is declared lost and a fault latched.
@@ -215,6 +222,8 @@ class HapticApp final : public loop::CycleTask {
   struct InstrumentState {
     kinematics::TrocarKinematics kinematics;
     std::array<hal::JointKind, 5> kinds{};  // for the encoder-jump limits
+    // Per joint, the largest effort its drive accepts (N·m, N): the device's current limits.
+    kinematics::JointVector effort_limits{};
     std::size_t first_channel = 0;
     kinematics::JointVector position{};
     kinematics::JointVector velocity{};
@@ -355,6 +364,7 @@ class HapticApp final : public loop::CycleTask {
   void write_outputs(bool armed) noexcept;
   void publish(const loop::CycleTiming& timing) noexcept;
   void zero_commands() noexcept;
+  std::uint64_t raised_fault_count() const noexcept;  // the supervisor's raises of every kind
 
   core::LogRing& log_;
   core::TripleBuffer<TelemetrySnapshot>& telemetry_;
@@ -415,6 +425,8 @@ class HapticApp final : public loop::CycleTask {
   std::uint32_t read_error_streak_ = 0;
   std::uint32_t write_error_streak_ = 0;
   std::uint32_t last_logged_faults_ = 0;
+  // Faults raised (every kind, repeats included) when the last cycle published its state.
+  std::uint64_t raised_at_publish_ = 0;
   std::atomic<bool> reset_requested_{false};
 };
 

@@ -81,6 +81,12 @@ class SafetySupervisor {
   Vec3 limit_force(std::size_t instrument, const Vec3& requested_n, float dt_s,
                    std::uint64_t cycle) noexcept;
 
+  // The force actually rendered this cycle when the actuators' effort limits scaled down what
+  // limit_force() allowed: the next cycle's slew limit starts from it, so the rendered force
+  // never rises faster than the limit when the posture frees the actuators again. Only a
+  // finite force no larger than the one limit_force() returned is taken, and only while armed.
+  void reduce_last_force(std::size_t instrument, const Vec3& rendered_n) noexcept;
+
   // Energy observer (Hannaford & Ryu): integrates the power the rendered force delivers to the
   // tool, W += F·v dt. A passive environment cannot deliver more than it absorbed, so W above
   // the bound latches a passivity fault. Resets on arming. A non-finite power or dt_s latches
