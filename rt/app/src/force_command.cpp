@@ -40,9 +40,13 @@ ForceCommand command_instrument(safety::SafetySupervisor& safety, std::size_t in
 
   ForceCommand command;
   command.force_n = safety.limit_force(instrument, total, dt_s, cycle);
-  const float total_norm = total.norm();
+  // In double: a float norm overflows beyond ~1.8e19 N and would put the whole command on
+  // the tip instead of sharing it among the points in proportion.
+  const double total_norm = total.cast<double>().norm();
   const float scale =
-      total_norm > 1e-9F ? std::min(1.0F, command.force_n.norm() / total_norm) : 1.0F;
+      total_norm > 1e-9
+          ? static_cast<float>(std::min(1.0, command.force_n.cast<double>().norm() / total_norm))
+          : 1.0F;
 
   // The tip as a point on the shaft: its distance from the shaft's start. It carries its own
   // force and whatever the chain changed beyond the common scale (zero unless the slew limit
