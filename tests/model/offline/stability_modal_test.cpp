@@ -29,7 +29,7 @@
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model_offline/mesh_generators.hpp"
 #include "trainer/model_offline/modal_build.hpp"
-#include "trainer/safety/safety_supervisor.hpp"
+#include "safety_chain_probe.hpp"  // tests/support
 
 namespace trainer::model {
 namespace {
@@ -298,38 +298,6 @@ TEST(ModalStability, PoissonRatioUpTo0_4999) {
       << at_half.error().message;
 }
 
-// The tool-force safety chain as a scene configures it (config/scenes/duct.toml): 8 N, 4000 N/s.
-struct SafetyChain {
-  safety::SafetySupervisor supervisor;
-  Vec3 last_n = Vec3::Zero();
-  float peak_n = 0.0F;
-  float worst_rise_n = 0.0F;  // largest |F| increase in one cycle
-  std::uint64_t cycle = 0;
-
-  SafetyChain() : supervisor(limits(), 1) {
-    supervisor.request_reset();
-    EXPECT_TRUE(supervisor.evaluate_inputs({}, 0));
-  }
-  static safety::SafetyLimits limits() {
-    safety::SafetyLimits result;
-    result.max_force_n = 8.0F;
-    result.max_force_rate_n_per_s = 4000.0F;
-    return result;
-  }
-  Vec3 pass(const Vec3& requested_n, float dt_s) {
-    const Vec3 force = supervisor.limit_force(0, requested_n, dt_s, ++cycle);
-    EXPECT_TRUE(force.allFinite());
-    peak_n = std::max(peak_n, force.norm());
-    worst_rise_n = std::max(worst_rise_n, force.norm() - last_n.norm());
-    last_n = force;
-    return force;
-  }
-  void expect_within_limits(float dt_s) const {
-    EXPECT_TRUE(supervisor.armed());
-    EXPECT_LE(peak_n, limits().max_force_n * (1.0F + 1e-6F));
-    EXPECT_LE(worst_rise_n, limits().max_force_rate_n_per_s * dt_s * (1.0F + 1e-5F));
-  }
-};
 
 TEST(ModalStability, ImposedPenetrationUpToTwiceTheDiameter) {
   // The top node at mid-length is driven down by solve_imposed (the displacement-driven
@@ -349,7 +317,7 @@ TEST(ModalStability, ImposedPenetrationUpToTwiceTheDiameter) {
     for (const float depth_m : {1e-3F, 1e-4F, 4.3e-3F, 8.6e-3F, 17.2e-3F}) {
       SCOPED_TRACE(testing::Message() << "E " << young_pa << " Pa, depth " << depth_m << " m");
       model.reset();
-      SafetyChain safety;
+      test::SafetyChainProbe safety;
       float peak_requested_n = 0.0F;
       double worst_scaling_error = 0.0;
       for (int step = 0; step < 200; ++step) {
@@ -438,7 +406,7 @@ TEST(ModalStability, ToolTipPressedThroughTheWholeDiameter) {
     auto contact = DisplacementContact::create(contact_settings, fixed, duct->arena);
     ASSERT_TRUE(contact) << contact.error().message;
     std::vector<float> deformed(3 * data.node_count);
-    SafetyChain safety;
+    test::SafetyChainProbe safety;
     Vec3 previous = tip_at(0);
     int contact_cycles = 0;
     float deepest_imposed_m = 0.0F;

@@ -25,7 +25,7 @@
 #include "trainer/model_offline/tensor_build.hpp"
 #include "trainer/model_offline/tet_elasticity.hpp"
 #include "trainer/model_offline/tet_mesh_generators.hpp"
-#include "trainer/safety/safety_supervisor.hpp"
+#include "safety_chain_probe.hpp"  // tests/support
 
 namespace trainer::model {
 namespace {
@@ -134,37 +134,6 @@ QuasiNonLinearMaps liver_maps() {
   return maps;
 }
 
-// The tool-force safety chain as the liver scene configures it: 8 N, 4000 N/s.
-struct SafetyChain {
-  safety::SafetySupervisor supervisor{limits(), 1};
-  Vec3 last_n = Vec3::Zero();
-  float peak_n = 0.0F;
-  float worst_rise_n = 0.0F;
-  std::uint64_t cycle = 0;
-
-  SafetyChain() {
-    supervisor.request_reset();
-    EXPECT_TRUE(supervisor.evaluate_inputs({}, 0));
-  }
-  static safety::SafetyLimits limits() {
-    safety::SafetyLimits result;
-    result.max_force_n = 8.0F;
-    result.max_force_rate_n_per_s = 4000.0F;
-    return result;
-  }
-  void pass(const Vec3& requested_n, float dt_s) {
-    const Vec3 force = supervisor.limit_force(0, requested_n, dt_s, ++cycle);
-    EXPECT_TRUE(force.allFinite());
-    peak_n = std::max(peak_n, force.norm());
-    worst_rise_n = std::max(worst_rise_n, force.norm() - last_n.norm());
-    last_n = force;
-  }
-  void expect_within_limits(float dt_s) const {
-    EXPECT_TRUE(supervisor.armed());
-    EXPECT_LE(peak_n, limits().max_force_n * (1.0F + 1e-6F));
-    EXPECT_LE(worst_rise_n, limits().max_force_rate_n_per_s * dt_s * (1.0F + 1e-5F));
-  }
-};
 
 // Float32 runtime against the double direct solve: what tensor_model_test asserts on the
 // liver-like block at ν = 0.45 (2e-5 of the largest displacement / force).
@@ -206,7 +175,7 @@ TEST(TensorStability, YoungsModulusOverTenDecades) {
     for (const auto& a : *agreement) {
       worst_agreement = std::max({worst_agreement, a.displacement_error, a.force_error});
     }
-    SafetyChain safety;
+    test::SafetyChainProbe safety;
     for (int cycle = 0; cycle < 10; ++cycle) safety.pass(-force, 1e-3F);
     std::printf("E %8.1e Pa: force %11.4g N (F/E x%.7f of E = 100 Pa), field change %.1e of the "
                 "press, vs direct solve %.1e, T(k,k) = I to %.1e, after safety %.3f N\n",
@@ -304,7 +273,7 @@ TEST(TensorStability, PressUpToTwiceTheBlockDepthWithTheLiverMaps) {
     float previous_force_n = 0.0F;
     for (const float depth_m : {0.001F, 0.005F, 0.01F, 0.02F, 0.03F, 0.06F}) {
       SCOPED_TRACE(testing::Message() << contacts << " contacts, depth " << depth_m << " m");
-      SafetyChain safety;
+      test::SafetyChainProbe safety;
       float force_n = 0.0F;
       for (int cycle = 0; cycle < 50; ++cycle) {
         const float reached = depth_m * static_cast<float>(cycle + 1) / 50.0F;

@@ -21,7 +21,7 @@
 #include "trainer/model/particle_contact.hpp"
 #include "trainer/model/rigid_contact.hpp"
 #include "trainer/model/segment_contact.hpp"
-#include "trainer/safety/safety_supervisor.hpp"
+#include "safety_chain_probe.hpp"  // tests/support
 
 namespace trainer::model {
 namespace {
@@ -34,38 +34,6 @@ constexpr float kMaxDamping = 1e4F;
 constexpr float kMaxContactForce = 100.0F;
 constexpr float kDt = 1e-3F;
 
-// The safety chain of the reference scenes: 8 N, 4000 N/s.
-struct SafetyChain {
-  safety::SafetySupervisor supervisor{limits(), 1};
-  Vec3 last_n = Vec3::Zero();
-  float peak_n = 0.0F;
-  float worst_rise_n = 0.0F;
-  std::uint64_t cycle = 0;
-
-  SafetyChain() {
-    supervisor.request_reset();
-    EXPECT_TRUE(supervisor.evaluate_inputs({}, 0));
-  }
-  static safety::SafetyLimits limits() {
-    safety::SafetyLimits result;
-    result.max_force_n = 8.0F;
-    result.max_force_rate_n_per_s = 4000.0F;
-    result.passivity_energy_bound_j = 0.0F;  // the sweeps are scripted, not a passive tool
-    return result;
-  }
-  void pass(const Vec3& requested_n) {
-    const Vec3 force = supervisor.limit_force(0, requested_n, kDt, ++cycle);
-    ASSERT_TRUE(force.allFinite());
-    peak_n = std::max(peak_n, force.norm());
-    worst_rise_n = std::max(worst_rise_n, force.norm() - last_n.norm());
-    last_n = force;
-  }
-  void expect_within_limits() const {
-    EXPECT_TRUE(supervisor.armed());
-    EXPECT_LE(peak_n, limits().max_force_n * (1.0F + 1e-6F));
-    EXPECT_LE(worst_rise_n, limits().max_force_rate_n_per_s * kDt * (1.0F + 1e-5F));
-  }
-};
 
 TEST(RigidContactStability, ThroughTheSphereCentreAndMetresIntoThePlane) {
   // A point from 1 cm outside a 5 cm sphere straight through its centre (depth = R there, and
@@ -76,7 +44,7 @@ TEST(RigidContactStability, ThroughTheSphereCentreAndMetresIntoThePlane) {
   const float radius = 0.05F;
   const RigidSphere sphere(Vec3::Zero(), radius, material);
   const Vec3 velocity(0.0F, 0.0F, -1.0F);
-  SafetyChain safety;
+  test::SafetyChainProbe safety;
   float deepest = 0.0F;
   for (int i = 0; i <= 1200; ++i) {
     const Vec3 point(0.0F, 0.0F, radius + 0.01F - 1e-4F * static_cast<float>(i));
@@ -89,7 +57,7 @@ TEST(RigidContactStability, ThroughTheSphereCentreAndMetresIntoThePlane) {
       ASSERT_NEAR(contact.force_n.norm(), expected, 1e-5F * expected + 1e-6F) << point.z();
       deepest = std::max(deepest, contact.depth_m);
     }
-    safety.pass(contact.force_n);
+    safety.pass(contact.force_n, kDt);
   }
   // At the exact centre: depth R, pushed along +z.
   const PointContact centre = sphere.contact(Vec3::Zero(), Vec3::Zero());
@@ -103,13 +71,13 @@ TEST(RigidContactStability, ThroughTheSphereCentreAndMetresIntoThePlane) {
     const PointContact contact = plane.contact(Vec3(0.0F, 0.0F, -depth), velocity);
     ASSERT_TRUE(contact.force_n.allFinite());
     EXPECT_FLOAT_EQ(contact.force_n.z(), kMaxStiffness * depth + kMaxDamping * 1.0F);
-    safety.pass(contact.force_n);
+    safety.pass(contact.force_n, kDt);
   }
   std::printf("rigid: sphere force at the centre %.3g N, plane at 10 m %.3g N; after safety %.3f N\n",
               static_cast<double>(centre.force_n.norm()),
               static_cast<double>(kMaxStiffness * 10.0F + kMaxDamping),
               static_cast<double>(safety.peak_n));
-  safety.expect_within_limits();
+  safety.expect_within_limits(kDt);
 }
 
 struct Mesh {
@@ -225,7 +193,7 @@ TEST(SegmentContactStability, ShaftPushedThroughTheWholeTube) {
   settings.max_candidates = 512;
   auto contact = SegmentSurfaceContact::create(settings, arena);
   ASSERT_TRUE(contact) << contact.error().message;
-  SafetyChain safety;
+  test::SafetyChainProbe safety;
   float peak_n = 0.0F;
   int touching = 0;
   std::array<NodeForce, SegmentSurfaceContact::kMaxNodeForces> node_forces{};
@@ -248,7 +216,7 @@ TEST(SegmentContactStability, ShaftPushedThroughTheWholeTube) {
     if (contact->contact_count() > 0) ++touching;
     const std::size_t count = contact->write_node_forces(node_forces);
     expect_balanced(on_tool, std::span(node_forces.data(), count));
-    safety.pass(on_tool);
+    safety.pass(on_tool, kDt);
   }
   std::printf("shaft through the tube: %d of 401 positions in contact, peak %.3f N (cap %.0f N), "
               "after safety %.3f N\n",
@@ -256,7 +224,7 @@ TEST(SegmentContactStability, ShaftPushedThroughTheWholeTube) {
               static_cast<double>(safety.peak_n));
   EXPECT_GT(touching, 100);
   EXPECT_GT(peak_n, 0.99F * kMaxContactForce);
-  safety.expect_within_limits();
+  safety.expect_within_limits(kDt);
 }
 
 }  // namespace
