@@ -19,6 +19,17 @@ jobs=$(nproc 2>/dev/null || echo 2)
 mode=${1:-}
 [ $# -gt 0 ] && shift
 
+# Sets `args` to the given arguments with --scene added (the default scene, cbd) when absent,
+# and `scene` to the scene they name.
+scene_args() {
+  args=("$@")
+  scene=config/scenes/cbd.toml
+  for ((i = 0; i < ${#args[@]}; ++i)); do
+    if [ "${args[$i]}" = "--scene" ] && [ $((i + 1)) -lt ${#args[@]} ]; then scene=${args[$((i + 1))]}; fi
+  done
+  if [[ " ${args[*]:-} " != *" --scene "* ]]; then args=(--scene "$scene" "${args[@]}"); fi
+}
+
 build() {  # build PRESET [TARGET...]
   local preset=$1; shift
   cmake --preset "$preset" >/dev/null
@@ -34,12 +45,7 @@ case "$mode" in
     tools/install-deps.sh
     build release trainer modelc
     mkdir -p out
-    args=("$@")
-    scene=config/scenes/cbd.toml
-    for ((i = 0; i < ${#args[@]}; ++i)); do
-      if [ "${args[$i]}" = "--scene" ] && [ $((i + 1)) -lt ${#args[@]} ]; then scene=${args[$((i + 1))]}; fi
-    done
-    if [[ " ${args[*]:-} " != *" --scene "* ]]; then args=(--scene "$scene" "${args[@]}"); fi
+    scene_args "$@"
     if [[ " ${args[*]:-} " != *" --report "* ]]; then args+=(--report out/report.json); fi
     echo "== modelc build --scene $scene"
     build/release/bin/modelc build --scene "$scene" --report out/models.json
@@ -50,12 +56,7 @@ case "$mode" in
     tools/install-deps.sh
     build release jitter modelc
     mkdir -p out
-    args=("$@")
-    scene=config/scenes/cbd.toml
-    for ((i = 0; i < ${#args[@]}; ++i)); do
-      if [ "${args[$i]}" = "--scene" ] && [ $((i + 1)) -lt ${#args[@]} ]; then scene=${args[$((i + 1))]}; fi
-    done
-    if [[ " ${args[*]:-} " != *" --scene "* ]]; then args=(--scene "$scene" "${args[@]}"); fi
+    scene_args "$@"
     echo "== modelc build --scene $scene"
     build/release/bin/modelc build --scene "$scene" --report out/models.json
     echo "== jitter ${args[*]}"
