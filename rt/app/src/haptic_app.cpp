@@ -137,7 +137,6 @@ core::Expected<model::TensorSettings> tensor_settings_from(const config::ModelDe
   return settings;
 }
 
-
 // The instrument's segments as the catheter contact sees them.
 model::ForcepsShape HapticApp::forceps_shape(const InstrumentState& instrument) noexcept {
   const kinematics::InstrumentPose& pose = instrument.pose;
