@@ -222,7 +222,7 @@ class ReferenceChain {
     for (std::uint32_t k = 0; k < substeps_; ++k) {
       const double hold_step = static_cast<double>(k + 1) * fraction;
       for (std::size_t i = 0; i < n; ++i) forces_[i] = external_n_[i] - damping_n_s_per_m_ * velocities_[i];
-      add_chain_forces<double>(positions_, stiffness_, forces_);
+      add_chain_forces<double>(positions_, stiffness_, forces_, held_);
       for (const WallContact& contact : wall_) {
         const std::size_t i = contact.particle;
         const double depth_m = radius_m_ - (positions_[i] - contact.point_m).dot(wall_normal_);
@@ -556,10 +556,14 @@ core::Expected<std::unique_ptr<CatheterTradeStudy>> CatheterTradeStudy::create(
     study->reference_substeps_ = reference->substeps_per_period();
   }
   const auto start = Clock::now();
+  // Richardson extrapolation with the observed order: N_ref, N_half and N_quarter share every
+  // other particle (segment counts n, n/2, n/4).
   const std::uint32_t half = (n - 1) / 2 + 1;
-  if (study->spec_.extrapolate_reference && (n % 2 == 0 || half < 3)) {
-    return core::make_error("catheter trade study: an extrapolated reference needs an odd N_ref >= 5 "
-                            "(N_ref/2 on every other particle), got N_ref = " + std::to_string(n));
+  const std::uint32_t quarter = (half - 1) / 2 + 1;
+  if (study->spec_.extrapolate_reference && (n % 2 == 0 || half % 2 == 0 || quarter < 3)) {
+    return core::make_error("catheter trade study: an extrapolated reference needs N_ref = 4k + 1 >= 9 "
+                            "(N_ref/2 and N_ref/4 on every other particle), got N_ref = " +
+                            std::to_string(n));
   }
   std::vector<History> plain;
   for (const CatheterScenario& scenario : study->scenarios_) {
@@ -569,25 +573,61 @@ core::Expected<std::unique_ptr<CatheterTradeStudy>> CatheterTradeStudy::create(
       study->references_.push_back(std::move(*fine));
       continue;
     }
-    auto coarse = study->run(scenario, half, RuntimePrecision::float64);
+    auto middle = study->run(scenario, half, RuntimePrecision::float64);
+    if (!middle) return std::move(middle).error();
+    auto coarse = study->run(scenario, quarter, RuntimePrecision::float64);
     if (!coarse) return std::move(coarse).error();
-    if (std::abs(fine->grasp_arc_length_m - coarse->grasp_arc_length_m) > 1e-9) {
-      return core::make_error(
-          "catheter trade study: scenario '" + scenario.name + "': the grasp at " +
-          number(scenario.grasp_arc_length_m) + " m is held at " +
-          number(fine->grasp_arc_length_m) + " m by N = " + std::to_string(n) + " but at " +
-          number(coarse->grasp_arc_length_m) + " m by N = " + std::to_string(half) +
-          ": extrapolation needs a grasp on a particle of both (or a plain reference)");
+    for (const auto& [count, history] :
+         {std::pair<std::uint32_t, const History*>{half, &*middle}, {quarter, &*coarse}}) {
+      if (std::abs(fine->grasp_arc_length_m - history->grasp_arc_length_m) > 1e-9) {
+        return core::make_error(
+            "catheter trade study: scenario '" + scenario.name + "': the grasp at " +
+            number(scenario.grasp_arc_length_m) + " m is held at " +
+            number(fine->grasp_arc_length_m) + " m by N = " + std::to_string(n) + " but at " +
+            number(history->grasp_arc_length_m) + " m by N = " + std::to_string(count) +
+            ": extrapolation needs a grasp on a particle of all three (or a plain reference)");
+      }
     }
+    // The observed order p of each output family from the three runs, |H(n/2) − H(n/4)| /
+    // |H(n) − H(n/2)| = 2^p, kept within [1, 2] (the chain's outputs converge at first or
+    // second order: docs/tradeoff-models.md); then H(n) + (H(n) − H(n/2)) / (2^p − 1).
+    const auto observed_order = [](double coarse_difference, double fine_difference) {
+      if (!(fine_difference > 0.0) || !(coarse_difference > 0.0)) return 2.0;
+      return std::clamp(std::log2(coarse_difference / fine_difference), 1.0, 2.0);
+    };
+    double force_coarse = 0.0;
+    double force_fine = 0.0;
+    double shape_coarse = 0.0;
+    double shape_fine = 0.0;
+    for (std::size_t k = 0; k < fine->stations_m.size(); ++k) {
+      for (std::size_t j = 0; j < 4; ++j) {
+        shape_coarse += (middle->stations_m[k][j] - coarse->stations_m[k][j]).squaredNorm();
+        shape_fine += (fine->stations_m[k][j] - middle->stations_m[k][j]).squaredNorm();
+      }
+      if (!fine->grasp_force_n.empty()) {
+        force_coarse += (middle->grasp_force_n[k] - coarse->grasp_force_n[k]).squaredNorm();
+        force_fine += (fine->grasp_force_n[k] - middle->grasp_force_n[k]).squaredNorm();
+      }
+    }
+    ReferenceOrder order;
+    order.shape = observed_order(std::sqrt(shape_coarse), std::sqrt(shape_fine));
+    order.force = fine->grasp_force_n.empty()
+                      ? 0.0
+                      : observed_order(std::sqrt(force_coarse), std::sqrt(force_fine));
+    const double shape_factor = 1.0 / (std::exp2(order.shape) - 1.0);
+    const double force_factor = 1.0 / (std::exp2(order.force) - 1.0);
     History extrapolated = *fine;
     for (std::size_t k = 0; k < extrapolated.stations_m.size(); ++k) {
       for (std::size_t j = 0; j < 4; ++j) {
-        extrapolated.stations_m[k][j] = 2.0 * fine->stations_m[k][j] - coarse->stations_m[k][j];
+        extrapolated.stations_m[k][j] +=
+            shape_factor * (fine->stations_m[k][j] - middle->stations_m[k][j]);
       }
       if (!extrapolated.grasp_force_n.empty()) {
-        extrapolated.grasp_force_n[k] = 2.0 * fine->grasp_force_n[k] - coarse->grasp_force_n[k];
+        extrapolated.grasp_force_n[k] +=
+            force_factor * (fine->grasp_force_n[k] - middle->grasp_force_n[k]);
       }
     }
+    study->reference_orders_.push_back(order);
     study->references_.push_back(std::move(extrapolated));
     plain.push_back(std::move(*fine));
   }

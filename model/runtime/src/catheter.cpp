@@ -219,7 +219,8 @@ void Catheter::reset() noexcept {
 bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
   const std::span<Vec3> forces = forces_.first(count_);
   for (std::uint32_t i = 0; i < count_; ++i) forces[i] = external_n_[i] - damping_n_s_per_m_ * velocities_[i];
-  add_chain_forces<float>(std::span<const Vec3>(positions_.data(), count_), stiffness_, forces);
+  add_chain_forces<float>(std::span<const Vec3>(positions_.data(), count_), stiffness_, forces,
+                          std::span<const std::uint8_t>(held_.data(), count_));
   for (std::size_t k = 0; k < plane_count_; ++k) {
     const ContactPlane& plane = planes_[k];
     const float w = plane.weight_b;
@@ -322,7 +323,8 @@ double Catheter::potential_energy_j() const noexcept {
   for (std::uint32_t i = 1; i + 1 < count_; ++i) {
     const double theta = segment_angle<double>((positions_[i] - positions_[i - 1]).cast<double>(),
                                                (positions_[i + 1] - positions_[i]).cast<double>());
-    energy += 0.5 * stiffness.bending_n_m_per_rad * theta * theta;
+    energy += 0.5 * hinge_stiffness<double>(stiffness, std::span<const std::uint8_t>(held_.data(), count_), i) *
+              theta * theta;
   }
   if (stiffness.root_clamped) {
     const double theta = segment_angle<double>(stiffness.root_tangent, (positions_[1] - positions_[0]).cast<double>());

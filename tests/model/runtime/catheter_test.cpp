@@ -115,6 +115,110 @@ TEST(CatheterForces, BendingAndAxialForcesAreTheExactEnergyGradient) {
   }
 }
 
+// A held segment (the forceps' jaws hold both its particles) clamps the chain: where the chain
+// leaves it, the hinge is the clamped root's 2 k_b (hinge_stiffness). Checked three ways: the
+// forces are the exact gradient of chain_energy with the same flags; a chain held at particles
+// 0 and 1 gives its free particles exactly the forces of the chain from particle 1 on with a
+// clamped root along the held segment, and a grasp in the middle does so on both sides (the
+// back side as the reversed chain); a single held particle (a pin) and three held in a row add
+// nothing.
+TEST(CatheterForces, GraspHingesAreTheClampedRootsOnEitherSideOfAHeldSegment) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<double> jitter(-0.004, 0.004);
+  constexpr std::uint32_t kCount = 9;
+  ChainStiffness<double> stiffness;
+  stiffness.axial_n_per_m = 50.0;
+  stiffness.bending_n_m_per_rad = 0.02;
+  stiffness.rest_length_m = 0.01;
+  const auto flags = [](std::initializer_list<std::uint32_t> held) {
+    std::vector<std::uint8_t> result(kCount, 0);
+    for (const std::uint32_t i : held) result[i] = 1;
+    return result;
+  };
+  const auto forces_of = [&](const std::vector<Vector3>& positions, const ChainStiffness<double>& chain,
+                             const std::vector<std::uint8_t>& held) {
+    std::vector<Vector3> forces(positions.size(), Vector3::Zero());
+    add_chain_forces<double>(positions, chain, forces, held);
+    return forces;
+  };
+  // The chain from `first` on (or, reversed, from `first` back to 0) with its root clamped
+  // along the held segment that ends at `first`.
+  const auto clamped_root_forces = [&](const std::vector<Vector3>& positions, std::uint32_t first,
+                                       std::uint32_t other, bool reversed) {
+    std::vector<Vector3> part;
+    if (reversed) {
+      for (std::uint32_t i = first + 1; i-- > 0;) part.push_back(positions[i]);
+    } else {
+      for (std::uint32_t i = first; i < kCount; ++i) part.push_back(positions[i]);
+    }
+    ChainStiffness<double> chain = stiffness;
+    chain.root_clamped = true;
+    chain.root_tangent = (positions[first] - positions[other]).normalized();
+    return forces_of(part, chain, {});
+  };
+  for (double scale : {1e-2, 0.3, 1.0, 2.5}) {
+    std::vector<Vector3> positions(kCount);
+    for (std::uint32_t i = 0; i < kCount; ++i) {
+      positions[i] = Vector3(0.011 * i, 0.0, 0.0) +
+                     scale * Vector3(jitter(random), jitter(random), jitter(random));
+    }
+    for (const auto& held : {flags({0, 1}), flags({3, 4}), flags({7, 8}), flags({4}),
+                             flags({2, 3, 4}), flags({0, 1, 5, 6})}) {
+      const std::vector<Vector3> forces = forces_of(positions, stiffness, held);
+      const double step_m = 1e-7;
+      for (std::uint32_t i = 0; i < kCount; ++i) {
+        for (int axis = 0; axis < 3; ++axis) {
+          std::vector<Vector3> probe = positions;
+          probe[i][axis] += step_m;
+          const double plus = chain_energy<double>(probe, stiffness, held);
+          probe[i][axis] -= 2.0 * step_m;
+          const double minus = chain_energy<double>(probe, stiffness, held);
+          const double expected_force = -(plus - minus) / (2.0 * step_m);
+          EXPECT_NEAR(forces[i][axis], expected_force, 1e-6 * (1.0 + std::abs(expected_force)))
+              << "scale " << scale << " particle " << i << " axis " << axis;
+        }
+      }
+    }
+    // Held 0 and 1: the free particles 2.. feel what a clamped root at particle 1 gives.
+    {
+      const std::vector<Vector3> grasped = forces_of(positions, stiffness, flags({0, 1}));
+      const std::vector<Vector3> clamped = clamped_root_forces(positions, 1, 0, false);
+      for (std::uint32_t i = 2; i < kCount; ++i) {
+        EXPECT_LT((grasped[i] - clamped[i - 1]).norm(), 1e-12 * (1.0 + clamped[i - 1].norm()))
+            << "scale " << scale << " particle " << i;
+      }
+    }
+    // Held 3 and 4: towards the tip as a root clamped at 4, towards the start as one at 3.
+    {
+      const std::vector<Vector3> grasped = forces_of(positions, stiffness, flags({3, 4}));
+      const std::vector<Vector3> front = clamped_root_forces(positions, 4, 3, false);
+      for (std::uint32_t i = 5; i < kCount; ++i) {
+        EXPECT_LT((grasped[i] - front[i - 4]).norm(), 1e-12 * (1.0 + front[i - 4].norm()))
+            << "scale " << scale << " particle " << i;
+      }
+      const std::vector<Vector3> back = clamped_root_forces(positions, 3, 4, true);
+      for (std::uint32_t i = 0; i < 3; ++i) {
+        EXPECT_LT((grasped[i] - back[3 - i]).norm(), 1e-12 * (1.0 + back[3 - i].norm()))
+            << "scale " << scale << " particle " << i;
+      }
+    }
+    // A pin, or a run of three held particles, has no clamp hinge of its own.
+    {
+      const std::vector<Vector3> free = forces_of(positions, stiffness, {});
+      const std::vector<Vector3> pinned = forces_of(positions, stiffness, flags({4}));
+      for (std::uint32_t i = 0; i < kCount; ++i) EXPECT_EQ(pinned[i], free[i]) << i;
+      const double plain = chain_energy<double>(positions, stiffness);
+      EXPECT_EQ(chain_energy<double>(positions, stiffness, flags({4})), plain);
+      // Three in a row: the middle hinge stays k_b (rigid anyway), the two ends get 2 k_b.
+      const double theta_2 = segment_angle<double>(positions[2] - positions[1], positions[3] - positions[2]);
+      const double theta_4 = segment_angle<double>(positions[4] - positions[3], positions[5] - positions[4]);
+      EXPECT_NEAR(chain_energy<double>(positions, stiffness, flags({2, 3, 4})) - plain,
+                  0.5 * stiffness.bending_n_m_per_rad * (theta_2 * theta_2 + theta_4 * theta_4),
+                  1e-12 * (1.0 + plain));
+    }
+  }
+}
+
 // Small transverse tip load: the discrete chain against F L³/(3 EI). With the 2 k_b root hinge
 // the chain's own linear answer is F L³/(3EI)·(1 + 1/(2n²)) (docs/catheter.md), so the error
 // falls with N; the tolerance at N = 41 is the brief's 2 %, the measured error is far below.

@@ -314,10 +314,20 @@ nlohmann::json run_catheter(const Options& options, const std::string& name,
   std::cout << "model '" << name << "' (particle catheter, L " << cfg.length_m
             << " m, definition N = " << cfg.particle_count << ", budget " << cfg.max_substeps
             << " substeps): reference N = " << spec.reference_particle_count
-            << " in double, Richardson-extrapolated\n";
+            << " in double, Richardson-extrapolated with the order observed against N/2 and N/4\n";
   auto study = value_or_throw(offline::CatheterTradeStudy::create(
       spec, offline::default_catheter_scenarios(cfg.length_m)));
-  std::cout << "  reference runs " << format("%.1f", study->reference_run_s()) << " s\n";
+  std::cout << "  reference runs " << format("%.1f", study->reference_run_s()) << " s";
+  nlohmann::json orders = nlohmann::json::array();
+  for (std::size_t k = 0; k < study->reference_orders().size(); ++k) {
+    const auto& order = study->reference_orders()[k];
+    const std::string& scenario = study->scenarios()[k].name;
+    std::cout << (k == 0 ? "; observed order (shape/grasp force): " : ", ") << scenario << ' '
+              << format("%.2f", order.shape) << '/'
+              << (order.force > 0.0 ? format("%.2f", order.force) : std::string("-"));
+    orders.push_back({{"scenario", scenario}, {"shape", order.shape}, {"grasp_force", order.force}});
+  }
+  std::cout << "\n";
 
   const std::vector<std::uint32_t> counts = options.quick ? std::vector<std::uint32_t>{6, 11}
                                                           : std::vector<std::uint32_t>{6, 11, 16, 21, 31, 41};
@@ -368,7 +378,8 @@ nlohmann::json run_catheter(const Options& options, const std::string& name,
           {"definition", definition.source_path.string()},
           {"reference", "the same chain in double at N = " +
                             std::to_string(spec.reference_particle_count) +
-                            ", Richardson-extrapolated"},
+                            ", Richardson-extrapolated with the observed order"},
+          {"reference_orders", orders},
           {"csv", (directory / (name + ".csv")).string()},
           {"plot", plot_problem.empty() ? (directory / (name + ".png")).string() : ""},
           {"recommendations", recommend_simple(simple, options.budgets_percent)}};

@@ -22,12 +22,11 @@
 // double at N_ref — in float32 the stiff axial springs turn a position's rounding into
 // period-to-period grasp-force noise that grows with N (cbd catheter, insertion at 45°: 1 %, 2 %
 // and 4 % of the peak at N = 11, 41, 81) — and by default extrapolated (Richardson, first
-// order) with N_ref/2. Every output here converges at first order in 1/N: the mass ends are
-// not halved, and the forceps' two-particle hold has no hinge compensation at the grasp (the
-// free part's first half-cell gets k_b instead of the 2 k_b clamp_start's root hinge gives), so
-// the chain is too soft there by ~3/(2 n_free). Measured on the cbd catheter, steady grasp
-// force at N = 6, 11, 21, 41, 81: ratios of successive differences 1.2, 1.5, 1.7 (→ 2); the
-// plain N_ref = 81 run is itself ~7 % off the extrapolated reference in that force.
+// order observed from N_ref, N_ref/2 and N_ref/4, per scenario and output family). The grasp
+// force converges at second order since the grasp hinges (hinge_stiffness in catheter.hpp:
+// the free part's first hinge gets the clamped root's 2 k_b); before them it converged at
+// first order and was 44 % low at N = 11. Shapes converge at first to second order (the mass
+// ends are not halved).
 //
 // Errors: the grasp force also chatters from period to period while the tip slides on the
 // penalty wall (in double too; up to ~2 % of the peak), and that chatter does not converge
@@ -109,8 +108,9 @@ struct CatheterStudySpec {
   std::uint32_t max_substeps = 64;    // the definition's budget: larger N is refused
   double haptic_period_s = 1e-3;
   std::uint32_t reference_particle_count = 81;  // run in double, without a budget
-  // Richardson extrapolation 2 H(N_ref) − H(N_half), N_half = (N_ref − 1)/2 + 1 (N_ref odd; the
-  // grasp must be a particle of both); false: the plain N_ref run.
+  // Richardson extrapolation with the observed order from N_ref, N_half = (N_ref − 1)/2 + 1 and
+  // N_quarter = (N_half − 1)/2 + 1 (N_ref = 4k + 1; the grasp must be a particle of all three):
+  // H(N_ref) + (H(N_ref) − H(N_half)) / (2^p − 1); false: the plain N_ref run.
   bool extrapolate_reference = true;
   double force_window_s = 0.01;  // sliding mean of the grasp force before comparing (centred)
   CatheterWallContact contact;
@@ -181,6 +181,13 @@ class CatheterTradeStudy {
   // When extrapolating: the plain N_ref run (double) against the extrapolated reference, per
   // scenario — what a plain reference would be off by (empty otherwise).
   const std::vector<CatheterScenarioError>& reference_check() const { return reference_check_; }
+  // When extrapolating: the observed convergence order per scenario, of the station positions
+  // and of the grasp force (0 without a grasp), each within [1, 2].
+  struct ReferenceOrder {
+    double shape = 0.0;
+    double force = 0.0;
+  };
+  const std::vector<ReferenceOrder>& reference_orders() const { return reference_orders_; }
 
   // Per-period outputs of one run of one scenario (period k ends at (k + 1)·period).
   struct History {
@@ -204,6 +211,7 @@ class CatheterTradeStudy {
   double reference_run_s_ = 0.0;
   std::uint32_t reference_substeps_ = 0;
   std::vector<CatheterScenarioError> reference_check_;
+  std::vector<ReferenceOrder> reference_orders_;
 };
 
 // Position at arc length s (m, clamped to [0, L]) of a chain of equal rest segments of

@@ -16,11 +16,16 @@
 //   hinges do not cover. This makes the cantilever tip deflection F L³/(3EI)·(1 + 1/(2n²))
 //   with n = N−1 segments (second order); fixing particles 0 and 1 instead gives
 //   (1 − 3/(2n) + 1/(2n²)), −3.7 % at N = 41.
+//   Grasp hinges: a held segment (both particles held: the forceps' jaws) clamps the chain the
+//   same way, so a held particle where the chain leaves it gets 2 k_b (hinge_stiffness()).
+//   Without them the grasp force converged at first order (44 % low at N = 11 in the cbd
+//   insertion, docs/tradeoff-models.md); with them at second order.
 //   Dissipation −b v with b in N·s/m per particle (not a damping ratio).
 //
 // Stability: semi-implicit Euler is stable for Δt < 2/ω_max. ω_max² ≤ 4 k_s/m (axial chain)
 // + 20 k_b/(m l0²) (bending chain: the interior stencil k_b/l0² [1 −4 6 −4 1] has spectral
-// radius 16; 20 covers the 2 k_b root hinge by Gershgorin). The stable substep is
+// radius 16; 20 covers the 2 k_b root and grasp hinges by Gershgorin: the free particle next
+// to one has row sum 8 + 8 + 4; the held particle is moved, not integrated). The stable substep is
 // 0.5 · 2/ω_max, and also ≤ m/b so the explicit damping never overshoots. Tension adds a
 // transverse geometric stiffness T/l = k_s (1 − l0/l) per segment, below k_s at any stretch
 // (a tip pulled with 20 EA stretches the chain 20-fold and settles); compression makes it
@@ -137,12 +142,28 @@ void bending_gradient(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<
   gradient_b = scale * (unit_a - cosine * unit_b) / length_b;
 }
 
+// Stiffness of the hinge at interior particle i. A held segment (both its particles held, as
+// the forceps' jaws hold one) is a short clamp: at a held particle where the chain leaves the
+// clamp (one neighbouring segment held, the other free) the hinge spans half a cell, like the
+// clamped root's, and gets 2 k_b (docs/catheter.md). `held` is empty (nothing held) or has a
+// flag per particle.
+template <class Scalar>
+Scalar hinge_stiffness(const ChainStiffness<Scalar>& stiffness, std::span<const std::uint8_t> held,
+                       std::size_t i) noexcept {
+  if (!held.empty() && held[i] != 0 && (held[i - 1] != 0) != (held[i + 1] != 0)) {
+    return Scalar(2) * stiffness.bending_n_m_per_rad;
+  }
+  return stiffness.bending_n_m_per_rad;
+}
+
 // Adds the internal forces of the chain (eq. 27: axial k_s (l − l0), bending from ½ k_b θ²,
-// minus the energy gradient) to `forces_n`. positions and forces have the same size.
+// minus the energy gradient) to `forces_n`. positions and forces have the same size; `held`
+// (empty, or a flag per particle) gives the grasp hinges (hinge_stiffness).
 template <class Scalar>
 void add_chain_forces(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
                       const ChainStiffness<Scalar>& stiffness,
-                      std::span<Eigen::Matrix<Scalar, 3, 1>> forces_n) noexcept {
+                      std::span<Eigen::Matrix<Scalar, 3, 1>> forces_n,
+                      std::span<const std::uint8_t> held = {}) noexcept {
   using Vector = Eigen::Matrix<Scalar, 3, 1>;
   const std::size_t count = positions_m.size();
   for (std::size_t i = 0; i + 1 < count; ++i) {
@@ -157,7 +178,7 @@ void add_chain_forces(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
   Vector gradient_b;
   for (std::size_t i = 1; i + 1 < count; ++i) {
     bending_gradient<Scalar>(positions_m[i] - positions_m[i - 1], positions_m[i + 1] - positions_m[i],
-                             stiffness.bending_n_m_per_rad, gradient_a, gradient_b);
+                             hinge_stiffness(stiffness, held, i), gradient_a, gradient_b);
     forces_n[i - 1] += gradient_a;
     forces_n[i] -= gradient_a - gradient_b;
     forces_n[i + 1] -= gradient_b;
@@ -170,10 +191,12 @@ void add_chain_forces(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
   }
 }
 
-// Elastic energy (J) of the chain: Σ ½ k_s (l − l0)² + Σ ½ k_b θ² (+ ½ (2 k_b) θ_root²).
+// Elastic energy (J) of the chain: Σ ½ k_s (l − l0)² + Σ ½ k_b,i θ_i² (+ ½ (2 k_b) θ_root²),
+// k_b,i from hinge_stiffness.
 template <class Scalar>
 Scalar chain_energy(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
-                    const ChainStiffness<Scalar>& stiffness) noexcept {
+                    const ChainStiffness<Scalar>& stiffness,
+                    std::span<const std::uint8_t> held = {}) noexcept {
   const std::size_t count = positions_m.size();
   Scalar energy = 0;
   for (std::size_t i = 0; i + 1 < count; ++i) {
@@ -183,7 +206,7 @@ Scalar chain_energy(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
   for (std::size_t i = 1; i + 1 < count; ++i) {
     const Scalar theta =
         segment_angle<Scalar>(positions_m[i] - positions_m[i - 1], positions_m[i + 1] - positions_m[i]);
-    energy += Scalar(0.5) * stiffness.bending_n_m_per_rad * theta * theta;
+    energy += Scalar(0.5) * hinge_stiffness(stiffness, held, i) * theta * theta;
   }
   if (stiffness.root_clamped && count >= 2) {
     const Scalar theta = segment_angle<Scalar>(stiffness.root_tangent, positions_m[1] - positions_m[0]);
