@@ -595,6 +595,15 @@ core::Expected<std::unique_ptr<CatheterTradeStudy>> CatheterTradeStudy::create(
       if (!(fine_difference > 0.0) || !(coarse_difference > 0.0)) return 2.0;
       return std::clamp(std::log2(coarse_difference / fine_difference), 1.0, 2.0);
     };
+    // The grasp force through the comparison's window: its period-to-period chatter does not
+    // converge and would hide the order.
+    const int half_window = static_cast<int>(
+        std::lround(0.5 * study->spec_.force_window_s / study->spec_.haptic_period_s));
+    const std::vector<Eigen::Vector3d> force_fine_mean = window_mean(fine->grasp_force_n, half_window);
+    const std::vector<Eigen::Vector3d> force_middle_mean =
+        window_mean(middle->grasp_force_n, half_window);
+    const std::vector<Eigen::Vector3d> force_coarse_mean =
+        window_mean(coarse->grasp_force_n, half_window);
     double force_coarse = 0.0;
     double force_fine = 0.0;
     double shape_coarse = 0.0;
@@ -604,10 +613,10 @@ core::Expected<std::unique_ptr<CatheterTradeStudy>> CatheterTradeStudy::create(
         shape_coarse += (middle->stations_m[k][j] - coarse->stations_m[k][j]).squaredNorm();
         shape_fine += (fine->stations_m[k][j] - middle->stations_m[k][j]).squaredNorm();
       }
-      if (!fine->grasp_force_n.empty()) {
-        force_coarse += (middle->grasp_force_n[k] - coarse->grasp_force_n[k]).squaredNorm();
-        force_fine += (fine->grasp_force_n[k] - middle->grasp_force_n[k]).squaredNorm();
-      }
+    }
+    for (std::size_t k = 0; k < force_fine_mean.size(); ++k) {
+      force_coarse += (force_middle_mean[k] - force_coarse_mean[k]).squaredNorm();
+      force_fine += (force_fine_mean[k] - force_middle_mean[k]).squaredNorm();
     }
     ReferenceOrder order;
     order.shape = observed_order(std::sqrt(shape_coarse), std::sqrt(shape_fine));
