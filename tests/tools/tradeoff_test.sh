@@ -22,6 +22,20 @@ test -s "$work/trade/cbd/duct.png" || { echo "no plot"; cat "$work/trade.txt"; e
 "$trainer" --scene "$scene" --hal sim --time simulated --cycles 2000 --report "$work/run.json" \
   >"$work/run.txt" 2>&1 || { echo "trainer failed"; cat "$work/run.txt"; exit 1; }
 
+# A budget no mode count meets at the definition's time step: refused, naming the budget, the
+# best candidate and what else would meet it; the image built above is left as it was.
+image="$work/out/models/duct.img"
+before=$(sha256sum "$image")
+if "$modelc" build --scene "$scene" --only duct --error-budget 1 >"$work/refused.txt" 2>&1; then
+  echo "an unreachable budget was accepted"; cat "$work/refused.txt"; exit 1
+fi
+for fragment in "no configuration meets the error budget 1.000 %" "the most accurate" \
+                "time_step_s = 1.000 ms" "loop.period_us"; do
+  grep -qF "$fragment" "$work/refused.txt" ||
+    { echo "refusal does not say '$fragment'"; cat "$work/refused.txt"; exit 1; }
+done
+test "$(sha256sum "$image")" = "$before" || { echo "a refused build changed the image"; exit 1; }
+
 python3 - "$work/trade/cbd" "$work/build.json" "$work/run.json" <<'PY'
 import csv, json, sys
 directory, build_path, run_path = sys.argv[1:4]

@@ -187,8 +187,17 @@ offline::BudgetChoice choose_modes_for_budget(const std::string& name, offline::
       candidates.push_back(config);
     }
   }
-  offline::BudgetChoice choice =
-      value_or_throw(offline::choose_for_budget(*study, budget, candidates, {}));
+  auto chosen_or_error = offline::choose_for_budget(*study, budget, candidates, {});
+  if (!chosen_or_error) {
+    // Mode count and correction are what an image carries; at 1 kHz the time step, not r, sets
+    // the error floor (docs/performance.md): say what else would meet the budget.
+    throw std::runtime_error(
+        "model '" + name + "': " + chosen_or_error.error().message + " at time_step_s = " +
+        fixed(spec.time_step_s * 1e3, 3) +
+        " ms; raise the budget, or shorten the definition's time_step_s together with the "
+        "scene's loop.period_us (`tradeoff --scene FILE` measures r against the time step)");
+  }
+  offline::BudgetChoice choice = std::move(chosen_or_error).value();
   std::cout << "model '" << name << "': error budget " << budget_percent
             << " % (RMS force error, worst scenario, vs DNIOS at "
             << fixed(reference_step_s * 1e6, 0) << " us): " << choice.candidates.size()
