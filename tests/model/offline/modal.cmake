@@ -7,4 +7,4 @@ trainer_test(NAME model_offline_modal_test
                      ${CMAKE_CURRENT_LIST_DIR}/modal_dnios_test.cpp
                      ${CMAKE_CURRENT_LIST_DIR}/modal_runtime_test.cpp
                      ${CMAKE_CURRENT_LIST_DIR}/modal_shell_test.cpp
-             LIBS trainer::model_offline trainer::model LABELS unit)
+             LIBS trainer::model_offline trainer::model LABELS unit NOT_UNDER_SANITIZERS)
