@@ -86,6 +86,30 @@ std::array<int, 3> sorted_nodes(const ShellMesh& mesh, Eigen::Index t) {
 
 }  // namespace
 
+CoincidentNodes find_coincident_nodes(
+    const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& nodes, double ratio,
+    std::size_t max_pairs) {
+  CoincidentNodes result;
+  if (nodes.rows() == 0) return result;
+  const Eigen::RowVector3d lower = nodes.colwise().minCoeff();
+  const Eigen::RowVector3d upper = nodes.colwise().maxCoeff();
+  result.tolerance_m = ratio * (upper - lower).norm();
+  std::vector<int> order(static_cast<std::size_t>(nodes.rows()));
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int l, int r) { return nodes(l, 0) < nodes(r, 0); });
+  for (std::size_t i = 0; i < order.size() && result.pairs.size() < max_pairs; ++i) {
+    for (std::size_t j = i + 1; j < order.size() && result.pairs.size() < max_pairs; ++j) {
+      const int a = order[i];
+      const int b = order[j];
+      if (nodes(b, 0) - nodes(a, 0) > result.tolerance_m) break;
+      if ((nodes.row(a) - nodes.row(b)).norm() <= result.tolerance_m) {
+        result.pairs.emplace_back(std::min(a, b), std::max(a, b));
+      }
+    }
+  }
+  return result;
+}
+
 core::Expected<void> validate_shell_mesh(const ShellMesh& mesh) {
   const Eigen::Index node_count = mesh.nodes.rows();
   const Eigen::Index triangle_count = mesh.triangles.rows();
@@ -232,26 +256,15 @@ core::Expected<void> validate_shell_mesh(const ShellMesh& mesh) {
     i = end;
   }
 
-  // Duplicate nodes: sweep along x, comparing only nodes within the tolerance in x.
-  const Eigen::RowVector3d lower = mesh.nodes.colwise().minCoeff();
-  const Eigen::RowVector3d upper = mesh.nodes.colwise().maxCoeff();
-  const double tolerance = kCoincidentNodeRatio * (upper - lower).norm();
-  std::vector<int> order(static_cast<std::size_t>(node_count));
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(),
-            [&](int l, int r) { return mesh.nodes(l, 0) < mesh.nodes(r, 0); });
-  for (std::size_t i = 0; i < order.size() && !problems.full(); ++i) {
-    for (std::size_t j = i + 1; j < order.size(); ++j) {
-      const int a = order[i];
-      const int b = order[j];
-      if (mesh.nodes(b, 0) - mesh.nodes(a, 0) > tolerance) break;
-      if ((mesh.nodes.row(a) - mesh.nodes.row(b)).norm() <= tolerance) {
-        std::ostringstream out;
-        out << "node " << std::max(a, b) << ": duplicate of node " << std::min(a, b) << " at "
-            << point_text(mesh.nodes.row(a)) << " (coincident within " << tolerance << " m)";
-        problems.add(out.str());
-      }
-    }
+  // Duplicate nodes.
+  const CoincidentNodes coincident = find_coincident_nodes(mesh.nodes, kCoincidentNodeRatio, 8);
+  for (const auto& [first, second] : coincident.pairs) {
+    if (problems.full()) break;
+    std::ostringstream out;
+    out << "node " << second << ": duplicate of node " << first << " at "
+        << point_text(mesh.nodes.row(first)) << " (coincident within " << coincident.tolerance_m
+        << " m)";
+    problems.add(out.str());
   }
 
   for (Eigen::Index n = 0; n < node_count && !problems.full(); ++n) {

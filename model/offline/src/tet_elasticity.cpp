@@ -1,5 +1,6 @@
 // Linear tetrahedral elasticity: element, assembly, CHOLMOD solver, mesh check.
 #include "trainer/model_offline/tet_elasticity.hpp"
+#include "trainer/model_offline/mesh_validation.hpp"
 
 #include <cholmod.h>
 
@@ -634,28 +635,15 @@ core::Expected<void> validate_tet_mesh(const TetMesh& mesh) {
     if (problem.empty()) problem = shape_problem(corners_m, corners);
     if (!problem.empty()) report(tet_description(e, corners) + " " + problem);
   }
-  // Duplicate nodes (when every coordinate is finite): sweep along x, comparing only nodes
-  // within the tolerance in x.
+  // Duplicate nodes (when every coordinate is finite).
   if (mesh.nodes.allFinite()) {
-    const Eigen::RowVector3d lower = mesh.nodes.colwise().minCoeff();
-    const Eigen::RowVector3d upper = mesh.nodes.colwise().maxCoeff();
-    const double tolerance = kCoincidentTetNodeRatio * (upper - lower).norm();
-    std::vector<int> order(static_cast<std::size_t>(node_count));
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(),
-              [&mesh](int l, int r) { return mesh.nodes(l, 0) < mesh.nodes(r, 0); });
-    for (std::size_t i = 0; i < order.size(); ++i) {
-      for (std::size_t j = i + 1; j < order.size(); ++j) {
-        const int a = order[i];
-        const int b = order[j];
-        if (mesh.nodes(b, 0) - mesh.nodes(a, 0) > tolerance) break;
-        if ((mesh.nodes.row(a) - mesh.nodes.row(b)).norm() <= tolerance) {
-          std::ostringstream out;
-          out << "node " << std::max(a, b) << " is a duplicate of node " << std::min(a, b)
-              << " (coincident within " << tolerance << " m: the mesh is split there; merge them)";
-          report(out.str());
-        }
-      }
+    const CoincidentNodes coincident =
+        find_coincident_nodes(mesh.nodes, kCoincidentTetNodeRatio, 8);
+    for (const auto& [first, second] : coincident.pairs) {
+      std::ostringstream out;
+      out << "node " << second << " is a duplicate of node " << first << " (coincident within "
+          << coincident.tolerance_m << " m: the mesh is split there; merge them)";
+      report(out.str());
     }
   }
   for (int node = 0; node < node_count; ++node) {

@@ -65,10 +65,10 @@ bool all_finite(const std::vector<std::array<float, 3>>& positions) {
 // The default catheter's introducer (config/models/catheter.toml [pose] start_m).
 constexpr std::array<float, 3> kIntroducerM{0.0F, 0.03F, -0.06F};
 
-// 100,000 cycles (100 s of procedure); 20,000 in the sanitizer build, where the same run takes
+// 100,000 cycles (100 s of procedure); 10,000 in the sanitizer build, where the same run takes
 // over two minutes and the point is memory errors, not the soak (CI's time budget).
 #if defined(TRAINER_SANITIZER_BUILD)
-constexpr std::uint64_t kSoakCycles = 20'000;
+constexpr std::uint64_t kSoakCycles = 10'000;
 #else
 constexpr std::uint64_t kSoakCycles = 100'000;
 #endif

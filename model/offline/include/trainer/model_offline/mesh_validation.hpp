@@ -2,6 +2,10 @@
 // fault instead of producing a singular or silently wrong stiffness matrix.
 #pragma once
 
+#include <cstddef>
+#include <utility>
+#include <vector>
+
 #include "trainer/core/expected.hpp"
 #include "trainer/model_offline/shell_model.hpp"
 
@@ -34,5 +38,16 @@ inline constexpr double kMinTriangleAngleDeg = 1.0;
 //   * nodes no triangle uses (they would have no stiffness);
 //   * node or triangle sets with out-of-range indices, and empty sets.
 core::Expected<void> validate_shell_mesh(const ShellMesh& mesh);
+
+// Pairs of nodes (rows of `nodes`, all finite) closer than `ratio` × the bounding-box diagonal,
+// found by a sweep along x that compares only nodes within the tolerance in x; each pair as
+// (earlier, later) index, at most `max_pairs`. Used by the shell and the tet mesh checks.
+struct CoincidentNodes {
+  double tolerance_m = 0.0;
+  std::vector<std::pair<int, int>> pairs;
+};
+CoincidentNodes find_coincident_nodes(
+    const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& nodes, double ratio,
+    std::size_t max_pairs);
 
 }  // namespace trainer::model::offline
