@@ -24,8 +24,9 @@
 //
 // Stability: semi-implicit Euler is stable for Δt < 2/ω_max. ω_max² ≤ 4 k_s/m (axial chain)
 // + 20 k_b/(m l0²) (bending chain: the interior stencil k_b/l0² [1 −4 6 −4 1] has spectral
-// radius 16; 20 covers the 2 k_b root and grasp hinges by Gershgorin: the free particle next
-// to one has row sum 8 + 8 + 4; the held particle is moved, not integrated). The stable substep is
+// radius 16; 20 covers the 2 k_b root hinge by Gershgorin; held particles are moved, not
+// integrated, so only free rows and columns count, and a free particle next to a 2 k_b grasp
+// hinge has row sum at most 2 + 6 + 4 = 12). The stable substep is
 // 0.5 · 2/ω_max, and also ≤ m/b so the explicit damping never overshoots. Tension adds a
 // transverse geometric stiffness T/l = k_s (1 − l0/l) per segment, below k_s at any stretch
 // (a tip pulled with 20 EA stretches the chain 20-fold and settles); compression makes it
