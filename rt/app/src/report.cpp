@@ -57,7 +57,9 @@ nlohmann::json step_split(const AppStats& app) {
   return split;
 }
 
-nlohmann::json report_json(const RunResult& r) {
+namespace {
+
+nlohmann::json instruments_json(const RunResult& r) {
   nlohmann::json instruments = nlohmann::json::array();
   for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {
     const InstrumentStats& s = r.app.instruments[i];
@@ -70,18 +72,75 @@ nlohmann::json report_json(const RunResult& r) {
         {"contact_cycles", s.contact_cycles},
         {"contact_onsets", s.contact_onsets},
         {"wall_segment_contact_cycles", s.wall_segment_contact_cycles},
-        {"peak_joint_effort", {{"pitch_nm", s.peak_joint_effort[0]},
-                               {"yaw_nm", s.peak_joint_effort[1]},
-                               {"insertion_n", s.peak_joint_effort[2]},
-                               {"roll_nm", s.peak_joint_effort[3]},
-                               {"grip_nm", s.peak_joint_effort[4]}}},
-        {"catheter", {{"contact_cycles", s.catheter_contact_cycles},
-                      {"grasps", s.grasps},
-                      {"slips", s.slips},
-                      {"grasping_cycles", s.grasping_cycles},
-                      {"peak_squeeze_n", s.peak_squeeze_n}}},
+        {"peak_joint_effort",
+         {{"pitch_nm", s.peak_joint_effort[0]},
+          {"yaw_nm", s.peak_joint_effort[1]},
+          {"insertion_n", s.peak_joint_effort[2]},
+          {"roll_nm", s.peak_joint_effort[3]},
+          {"grip_nm", s.peak_joint_effort[4]}}},
+        {"catheter",
+         {{"contact_cycles", s.catheter_contact_cycles},
+          {"grasps", s.grasps},
+          {"slips", s.slips},
+          {"grasping_cycles", s.grasping_cycles},
+          {"peak_squeeze_n", s.peak_squeeze_n}}},
     });
   }
+  return instruments;
+}
+
+void add_catheter_fields(const LoadedModelInfo& m, const CatheterStats& c, nlohmann::json& entry) {
+  entry.update({{"particle_count", m.particle_count},
+                {"stable_substep_s", m.stable_substep_s},
+                {"substeps_per_period", m.substeps_per_period},
+                {"max_substeps", m.max_substeps},
+                {"hold_start", m.hold_start}});
+  entry["wall_contact_cycles"] = c.wall_contact_cycles;
+  entry["dropped_contacts"] = c.dropped_contacts;
+  if (m.has_insertion_goal) {
+    entry["insertion"] = {
+        {"depth_m", c.insertion_depth_m},           {"peak_depth_m", c.peak_insertion_depth_m},
+        {"peak_held_depth_m", c.peak_held_depth_m}, {"target_depth_m", m.insertion_target_depth_m},
+        {"target_reached", c.target_reached},       {"first_target_cycle", c.first_target_cycle}};
+  }
+  if (!m.final_positions_m.empty()) {
+    entry["final_root_position_m"] = m.final_positions_m.front();
+    entry["final_tip_position_m"] = m.final_positions_m.back();
+  }
+}
+
+void add_tensor_fields(const LoadedModelInfo& m, const TensorModelStats& t, nlohmann::json& entry) {
+  entry.update({{"contact_node_count", m.contact_node_count},
+                {"stored_node_count", m.stored_node_count},
+                {"max_contacts", m.max_contacts},
+                {"quasi_nonlinear", m.quasi_nonlinear}});
+  entry["load"] = {
+      {"peak_force_n", t.peak_force_n},
+      {"mean_force_n",
+       t.loaded_cycles > 0 ? t.force_sum_n / static_cast<double>(t.loaded_cycles) : 0.0},
+      {"loaded_cycles", t.loaded_cycles},
+      {"contact_onsets", t.contact_onsets},
+      {"peak_contact_nodes", t.peak_contact_nodes},
+      {"peak_indentation_m", t.peak_indentation_m},
+      {"refused_solves", t.refused_solves}};
+}
+
+void add_modal_fields(const LoadedModelInfo& m, const ModalModelStats& d, nlohmann::json& entry) {
+  entry.update({{"mode_count", m.mode_count},
+                {"static_correction", m.static_correction},
+                {"prepared_time_step_s", m.prepared_time_step_s}});
+  entry["load"] = {
+      {"peak_force_n", d.peak_force_n},
+      {"mean_force_n",
+       d.loaded_cycles > 0 ? d.force_sum_n / static_cast<double>(d.loaded_cycles) : 0.0},
+      {"loaded_cycles", d.loaded_cycles},
+      {"tool_contact_cycles", d.tool_contact_cycles},
+      {"catheter_contact_cycles", d.catheter_contact_cycles},
+      {"peak_catheter_contacts", d.peak_catheter_contacts},
+      {"peak_catheter_force_n", d.peak_catheter_force_n}};
+}
+
+nlohmann::json models_json(const RunResult& r) {
   std::size_t modal_index = 0;
   std::size_t tensor_index = 0;
   std::size_t catheter_index = 0;
@@ -95,26 +154,7 @@ nlohmann::json report_json(const RunResult& r) {
                             {"position_m", m.position_m},
                             {"rotation_deg", m.rotation_deg}};
     if (m.kind == config::ModelKind::catheter) {
-      entry.update({{"particle_count", m.particle_count},
-                    {"stable_substep_s", m.stable_substep_s},
-                    {"substeps_per_period", m.substeps_per_period},
-                    {"max_substeps", m.max_substeps},
-                    {"hold_start", m.hold_start}});
-      const CatheterStats& c = r.app.catheters[catheter_index++];
-      entry["wall_contact_cycles"] = c.wall_contact_cycles;
-      entry["dropped_contacts"] = c.dropped_contacts;
-      if (m.has_insertion_goal) {
-        entry["insertion"] = {{"depth_m", c.insertion_depth_m},
-                              {"peak_depth_m", c.peak_insertion_depth_m},
-                              {"peak_held_depth_m", c.peak_held_depth_m},
-                              {"target_depth_m", m.insertion_target_depth_m},
-                              {"target_reached", c.target_reached},
-                              {"first_target_cycle", c.first_target_cycle}};
-      }
-      if (!m.final_positions_m.empty()) {
-        entry["final_root_position_m"] = m.final_positions_m.front();
-        entry["final_tip_position_m"] = m.final_positions_m.back();
-      }
+      add_catheter_fields(m, r.app.catheters[catheter_index++], entry);
     } else {
       // Image-backed kinds.
       entry.update({{"image", m.image_path},
@@ -122,36 +162,19 @@ nlohmann::json report_json(const RunResult& r) {
                     {"image_bytes", m.image_bytes},
                     {"node_count", m.node_count}});
       if (m.kind == config::ModelKind::tet_tensor) {
-        entry.update({{"contact_node_count", m.contact_node_count},
-                      {"stored_node_count", m.stored_node_count},
-                      {"max_contacts", m.max_contacts},
-                      {"quasi_nonlinear", m.quasi_nonlinear}});
-        const TensorModelStats& t = r.app.tensor_models[tensor_index++];
-        entry["load"] = {
-            {"peak_force_n", t.peak_force_n},
-            {"mean_force_n", t.loaded_cycles > 0 ? t.force_sum_n / static_cast<double>(t.loaded_cycles) : 0.0},
-            {"loaded_cycles", t.loaded_cycles},
-            {"contact_onsets", t.contact_onsets},
-            {"peak_contact_nodes", t.peak_contact_nodes},
-            {"peak_indentation_m", t.peak_indentation_m},
-            {"refused_solves", t.refused_solves}};
+        add_tensor_fields(m, r.app.tensor_models[tensor_index++], entry);
       } else {
-        entry.update({{"mode_count", m.mode_count},
-                      {"static_correction", m.static_correction},
-                      {"prepared_time_step_s", m.prepared_time_step_s}});
-        const ModalModelStats& d = r.app.modal_models[modal_index++];
-        entry["load"] = {
-            {"peak_force_n", d.peak_force_n},
-            {"mean_force_n", d.loaded_cycles > 0 ? d.force_sum_n / static_cast<double>(d.loaded_cycles) : 0.0},
-            {"loaded_cycles", d.loaded_cycles},
-            {"tool_contact_cycles", d.tool_contact_cycles},
-            {"catheter_contact_cycles", d.catheter_contact_cycles},
-            {"peak_catheter_contacts", d.peak_catheter_contacts},
-            {"peak_catheter_force_n", d.peak_catheter_force_n}};
+        add_modal_fields(m, r.app.modal_models[modal_index++], entry);
       }
     }
     models.push_back(std::move(entry));
   }
+  return models;
+}
+
+}  // namespace
+
+nlohmann::json report_json(const RunResult& r) {
   nlohmann::json fault_counts = nlohmann::json::object();
   for (const auto& [name, count] : r.fault_counts) fault_counts[name] = count;
 
@@ -175,10 +198,11 @@ nlohmann::json report_json(const RunResult& r) {
       {"period_measured_ns", percentiles(r.loop.period)},
       {"memory",
        {{"heap_allocations_after_arming", r.heap_allocations_after_arming},
-        {"allocation_counting", r.allocation_hooks_installed
-                                    ? (r.malloc_family_counted ? "operator new and malloc family"
-                                                               : "operator new only (sanitizer build)")
-                                    : "not measured (allocation hooks not linked)"},
+        {"allocation_counting",
+         r.allocation_hooks_installed
+             ? (r.malloc_family_counted ? "operator new and malloc family"
+                                        : "operator new only (sanitizer build)")
+             : "not measured (allocation hooks not linked)"},
         {"arena_bytes_used", r.arena_bytes_used},
         {"arena_bytes_capacity", r.arena_bytes_capacity}}},
       {"rt",
@@ -207,34 +231,76 @@ nlohmann::json report_json(const RunResult& r) {
         {"invalid_encoder_cycles", r.app.invalid_encoder_cycles},
         {"saturated_actuator_cycles", r.app.saturated_actuator_cycles}}},
       {"armed_cycles", r.app.armed_cycles},
-      {"instruments", instruments},
-      {"models", models},
+      {"instruments", instruments_json(r)},
+      {"models", models_json(r)},
       {"model_step_errors", r.app.model_step_errors},
       {"log_records_dropped", r.log_records_dropped},
   };
 }
 
-std::string report_summary(const RunResult& r) {
-  std::ostringstream out;
-  out << "trainer: scene '" << r.scene_name << "' on hal '" << r.hal << "' (" << r.time_source
-      << " time)\n";
-  out << "  cycles " << r.loop.cycles << " at " << microseconds(r.period_ns) << " us period, "
-      << "wall time " << r.wall_time_s << " s"
-      << (r.stopped_by_signal ? " (stopped by signal)" : "") << "\n";
+namespace {
+
+void summarize_catheter(const RunResult& r, const LoadedModelInfo& m, const CatheterStats& c,
+                        std::ostream& out) {
+  if (m.has_insertion_goal) {
+    out << "  model '" << m.name << "': insertion depth " << c.insertion_depth_m * 1e3F
+        << " mm (peak " << c.peak_insertion_depth_m * 1e3F << " mm, held in the jaws "
+        << c.peak_held_depth_m * 1e3F << " mm, target " << m.insertion_target_depth_m * 1e3
+        << " mm: " << (c.target_reached ? "reached" : "NOT reached") << "), wall contact cycles "
+        << c.wall_contact_cycles << "\n";
+  }
+  out << "  model '" << m.name << "': catheter, " << m.particle_count << " particles, stable step "
+      << microseconds_of_seconds(m.stable_substep_s) << " us, " << m.substeps_per_period
+      << " substeps per " << microseconds(r.period_ns) << " us period (budget " << m.max_substeps
+      << "), " << (m.hold_start ? "held at the introducer" : "free start") << ", arena "
+      << m.arena_bytes << " bytes\n";
+}
+
+void summarize_tensor(const LoadedModelInfo& m, const TensorModelStats& t, std::ostream& out) {
+  if (t.loaded_cycles > 0) {
+    out << "  model '" << m.name << "': peak force " << t.peak_force_n << " N, mean "
+        << t.force_sum_n / static_cast<double>(t.loaded_cycles) << " N over " << t.loaded_cycles
+        << " loaded cycles, " << t.contact_onsets << " contact(s), peak indentation "
+        << t.peak_indentation_m * 1e3F << " mm on up to " << t.peak_contact_nodes << " nodes\n";
+  }
+  out << "  model '" << m.name << "': tensor model, " << m.node_count << " nodes, "
+      << m.contact_node_count << " contact nodes, up to " << m.max_contacts
+      << " contacts, quasi-non-linear " << (m.quasi_nonlinear ? "on" : "off") << ", image "
+      << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
+}
+
+void summarize_modal(const LoadedModelInfo& m, const ModalModelStats& d, std::ostream& out) {
+  if (d.loaded_cycles > 0) {
+    out << "  model '" << m.name << "': peak force " << d.peak_force_n << " N, mean "
+        << d.force_sum_n / static_cast<double>(d.loaded_cycles) << " N over " << d.loaded_cycles
+        << " loaded cycles (tools " << d.tool_contact_cycles << ", catheter "
+        << d.catheter_contact_cycles << ", at most " << d.peak_catheter_contacts
+        << " catheter contacts)\n";
+  }
+  out << "  model '" << m.name << "': " << m.node_count << " nodes, " << m.mode_count
+      << " modes, static correction " << (m.static_correction ? "on" : "off") << ", image "
+      << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
+}
+
+void summarize_timing(const RunResult& r, std::ostream& out) {
   out << "  " << latency_line("wake-up latency:", r.loop.wake_latency) << "\n";
   out << "  " << latency_line("step time:      ", r.loop.step_time) << "\n";
   out << "  step split p50/p99/p99.9 us:";
   for (std::size_t phase = 0; phase < kCyclePhaseCount; ++phase) {
     const core::LatencyHistogram& h = r.app.phase_ns[phase];
+    if (h.count() == 0) continue;  // a stage this scene does not run
     out << " " << kCyclePhaseNames[phase] << " " << microseconds(h.percentile_ns(0.5)) << "/"
         << microseconds(h.percentile_ns(0.99)) << "/" << microseconds(h.percentile_ns(0.999));
   }
   out << "\n";
   out << "  overruns " << r.loop.overruns << ", longest streak " << r.loop.longest_overrun_streak
       << ", skipped periods " << r.loop.skipped_periods << "\n";
+}
+
+void summarize_rt(const RunResult& r, std::ostream& out) {
   out << "  heap allocations after arming: " << r.heap_allocations_after_arming
-      << (r.allocation_hooks_installed ? "" : " (not measured)") << "; arena "
-      << r.arena_bytes_used << " of " << r.arena_bytes_capacity << " bytes\n";
+      << (r.allocation_hooks_installed ? "" : " (not measured)") << "; arena " << r.arena_bytes_used
+      << " of " << r.arena_bytes_capacity << " bytes\n";
   out << "  rt: " << r.rt.policy << " priority " << r.rt.priority << ", cpu "
       << (r.rt.cpu < 0 ? std::string("any") : std::to_string(r.rt.cpu)) << ", mlock "
       << (r.rt.memory_locked ? "yes" : "no") << ", cpu wake-up latency "
@@ -243,62 +309,44 @@ std::string report_summary(const RunResult& r) {
       << ", kernel " << r.rt.kernel_release
       << (r.rt.preempt_rt ? " (PREEMPT_RT)" : " (not PREEMPT_RT)") << "\n";
   for (const std::string& warning : r.rt.warnings) out << "  warning: " << warning << "\n";
+}
+
+void summarize_instruments(const RunResult& r, std::ostream& out) {
   for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {
     const InstrumentStats& s = r.app.instruments[i];
     out << "  instrument '" << r.instrument_names[i] << "': peak force " << s.peak_force_n
-        << " N, peak depth " << s.peak_depth_m * 1e3F << " mm, contact cycles "
-        << s.contact_cycles;
+        << " N, peak depth " << s.peak_depth_m * 1e3F << " mm, contact cycles " << s.contact_cycles;
     if (s.grasps > 0 || s.catheter_contact_cycles > 0) {
       out << ", catheter contact cycles " << s.catheter_contact_cycles << ", grasps " << s.grasps
           << " (slips " << s.slips << "), peak squeeze " << s.peak_squeeze_n << " N";
     }
     out << "\n";
   }
+}
+
+}  // namespace
+
+std::string report_summary(const RunResult& r) {
+  std::ostringstream out;
+  out << "trainer: scene '" << r.scene_name << "' on hal '" << r.hal << "' (" << r.time_source
+      << " time)\n";
+  out << "  cycles " << r.loop.cycles << " at " << microseconds(r.period_ns) << " us period, "
+      << "wall time " << r.wall_time_s << " s"
+      << (r.stopped_by_signal ? " (stopped by signal)" : "") << "\n";
+  summarize_timing(r, out);
+  summarize_rt(r, out);
+  summarize_instruments(r, out);
   std::size_t text_modal = 0;
   std::size_t text_tensor = 0;
   std::size_t text_catheter = 0;
   for (const LoadedModelInfo& m : r.models) {
     if (m.kind == config::ModelKind::catheter) {
-      const CatheterStats& c = r.app.catheters[text_catheter++];
-      if (m.has_insertion_goal) {
-        out << "  model '" << m.name << "': insertion depth " << c.insertion_depth_m * 1e3F
-            << " mm (peak " << c.peak_insertion_depth_m * 1e3F << " mm, held in the jaws "
-            << c.peak_held_depth_m * 1e3F << " mm, target "
-            << m.insertion_target_depth_m * 1e3 << " mm: " << (c.target_reached ? "reached" : "NOT reached")
-            << "), wall contact cycles " << c.wall_contact_cycles << "\n";
-      }
-      out << "  model '" << m.name << "': catheter, " << m.particle_count
-          << " particles, stable step " << microseconds_of_seconds(m.stable_substep_s) << " us, "
-          << m.substeps_per_period << " substeps per " << microseconds(r.period_ns)
-          << " us period (budget " << m.max_substeps << "), "
-          << (m.hold_start ? "held at the introducer" : "free start") << ", arena "
-          << m.arena_bytes << " bytes\n";
-      continue;
+      summarize_catheter(r, m, r.app.catheters[text_catheter++], out);
+    } else if (m.kind == config::ModelKind::tet_tensor) {
+      summarize_tensor(m, r.app.tensor_models[text_tensor++], out);
+    } else {
+      summarize_modal(m, r.app.modal_models[text_modal++], out);
     }
-    if (m.kind == config::ModelKind::tet_tensor) {
-      const TensorModelStats& t = r.app.tensor_models[text_tensor++];
-      if (t.loaded_cycles > 0) {
-        out << "  model '" << m.name << "': peak force " << t.peak_force_n << " N, mean "
-            << t.force_sum_n / static_cast<double>(t.loaded_cycles) << " N over " << t.loaded_cycles
-            << " loaded cycles, " << t.contact_onsets << " contact(s), peak indentation "
-            << t.peak_indentation_m * 1e3F << " mm on up to " << t.peak_contact_nodes << " nodes\n";
-      }
-      out << "  model '" << m.name << "': tensor model, " << m.node_count << " nodes, "
-          << m.contact_node_count << " contact nodes, up to " << m.max_contacts
-          << " contacts, quasi-non-linear " << (m.quasi_nonlinear ? "on" : "off") << ", image "
-          << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
-      continue;
-    }
-    const ModalModelStats& d = r.app.modal_models[text_modal++];
-    if (d.loaded_cycles > 0) {
-      out << "  model '" << m.name << "': peak force " << d.peak_force_n << " N, mean "
-          << d.force_sum_n / static_cast<double>(d.loaded_cycles) << " N over " << d.loaded_cycles
-          << " loaded cycles (tools " << d.tool_contact_cycles << ", catheter " << d.catheter_contact_cycles
-          << ", at most " << d.peak_catheter_contacts << " catheter contacts)\n";
-    }
-    out << "  model '" << m.name << "': " << m.node_count << " nodes, " << m.mode_count
-        << " modes, static correction " << (m.static_correction ? "on" : "off") << ", image "
-        << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
   }
   out << "  safety: armed " << r.arm_count << " time(s), armed cycles " << r.app.armed_cycles;
   if (r.fault_counts.empty()) {

@@ -25,10 +25,10 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   cli.add_option("--hal", options.hal, "HAL backend: sim (simulated bench)")
       ->check(CLI::IsMember({"sim"}));
-  auto* cycles_opt = cli.add_option("--cycles", cycles, "Number of cycles to run")
-                         ->check(CLI::PositiveNumber);
-  auto* seconds_opt = cli.add_option("--seconds", seconds, "Run length in seconds")
-                          ->check(CLI::PositiveNumber);
+  auto* cycles_opt =
+      cli.add_option("--cycles", cycles, "Number of cycles to run")->check(CLI::PositiveNumber);
+  auto* seconds_opt =
+      cli.add_option("--seconds", seconds, "Run length in seconds")->check(CLI::PositiveNumber);
   cycles_opt->excludes(seconds_opt);
   cli.add_option("--report", report_file, "Write the JSON report to this file");
   cli.add_option("--time", time_source,

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "trainer/app/sim_wiring.hpp"
 #include "trainer/config/scene.hpp"
@@ -73,7 +74,25 @@ core::Expected<std::uint64_t> cycles_to_run(const RunOptions& options,
 
 }  // namespace
 
-core::Expected<RunResult> run_trainer(const RunOptions& options) {
+namespace {
+
+// Everything one run owns, created on the setup path before the RT thread starts. Members are
+// destroyed in reverse order: the app before the arena it lives in, the device last.
+struct RunSetup {
+  config::SceneConfig scene;
+  std::unique_ptr<core::Clock> clock;
+  std::unique_ptr<hal::sim::SimDevice> device;
+  std::optional<core::Arena> arena;
+  std::unique_ptr<core::LogRing> log = std::make_unique<core::LogRing>();
+  std::unique_ptr<core::TripleBuffer<TelemetrySnapshot>> telemetry =
+      std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
+  std::unique_ptr<HapticApp> app;
+  std::uint64_t cycles = 0;
+};
+
+// The scene with this run's loop overrides, the HAL backend configured and active, the arena
+// carved and sealed, the app created; the device is deactivated again on any error.
+core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
   auto scene = config::load_scene(options.scene_file);
   if (!scene) return std::move(scene).error();
   if (auto overridden = config::apply_loop_overrides(scene->loop, options.loop_overrides);
@@ -84,75 +103,75 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
     return core::make_error("--hal " + options.hal +
                             ": unknown backend; this build offers 'sim' (the simulated bench)");
   }
-
-  // Block SIGINT/SIGTERM before any thread exists so every thread inherits the mask and only
-  // this supervisor thread receives them (no async handler runs on the RT thread).
-  loop::StopSignals signals;
-
-  std::unique_ptr<core::Clock> clock;
+  setup.scene = std::move(*scene);
+  const config::SceneConfig& cfg = setup.scene;
   if (options.time_source == TimeSource::simulated) {
-    clock = std::make_unique<core::ManualClock>(0);
+    setup.clock = std::make_unique<core::ManualClock>(0);
   } else {
-    clock = std::make_unique<core::MonotonicClock>();
+    setup.clock = std::make_unique<core::MonotonicClock>();
   }
-
-  hal::sim::SimDevice device(*clock, sim_params_from(*scene));
+  setup.device = std::make_unique<hal::sim::SimDevice>(*setup.clock, sim_params_from(cfg));
+  hal::sim::SimDevice& device = *setup.device;
   if (auto configured = device.configure(); !configured) {
-    return core::make_error(scene->device.source_path.string() + ": " + configured.error().message);
+    return core::make_error(cfg.device.source_path.string() + ": " + configured.error().message);
   }
   if (auto activated = device.activate(); !activated) {
-    return core::make_error(scene->device.source_path.string() + ": " + activated.error().message);
+    return core::make_error(cfg.device.source_path.string() + ": " + activated.error().message);
   }
-
-  auto arena = core::Arena::create(scene->memory.arena_bytes);
-  if (!arena) return std::move(arena).error();
-  auto log = std::make_unique<core::LogRing>();
-  auto telemetry = std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
+  const auto fail = [&](core::Error error) -> core::Expected<void> {
+    device.deactivate();
+    return error;
+  };
+  auto arena = core::Arena::create(cfg.memory.arena_bytes);
+  if (!arena) return fail(std::move(arena).error());
+  setup.arena.emplace(std::move(*arena));
   HalBinding binding{device.encoders(), device.actuators(), device.digital_inputs(),
                      device.digital_outputs()};
-  auto app = HapticApp::create(*scene, binding, *arena, *log, *telemetry, *clock);
-  if (!app) {
-    device.deactivate();
-    return std::move(app).error();
+  auto app =
+      HapticApp::create(cfg, binding, *setup.arena, *setup.log, *setup.telemetry, *setup.clock);
+  if (!app) return fail(std::move(app).error());
+  setup.app = std::move(*app);
+  auto cycles = cycles_to_run(options, cfg, device.script_duration_s());
+  if (!cycles) return fail(std::move(cycles).error());
+  setup.cycles = *cycles;
+  setup.arena->seal();  // from here on nothing may be carved from the arena
+  return {};
+}
+
+// The safety record as the run left it (before the routine shutdown latch).
+void record_safety(const safety::SafetySupervisor& safety, RunResult& result) {
+  result.latched_faults = safety.latched_faults();
+  result.first_fault = safety::to_string(safety.first_fault());
+  result.first_fault_cycle = safety.first_fault_cycle();
+  for (std::size_t k = 0; k < safety::kFaultKinds; ++k) {
+    if (safety.fault_counts()[k] == 0) continue;
+    result.fault_counts.emplace_back(safety::to_string(static_cast<safety::Fault>(1U << k)),
+                                     safety.fault_counts()[k]);
   }
-  auto cycles = cycles_to_run(options, *scene, device.script_duration_s());
-  if (!cycles) {
-    device.deactivate();
-    return std::move(cycles).error();
-  }
-  arena->seal();  // from here on nothing may be carved from the arena
+}
 
-  RunResult result;
-  result.scene_file = options.scene_file;
-  result.scene_name = scene->name;
-  result.hal = options.hal;
-  result.time_source = options.time_source == TimeSource::real ? "real" : "simulated";
-  result.period_ns = scene->loop.period_ns;
-  result.requested_cycles = *cycles;
-  for (const auto& instrument : scene->instruments) result.instrument_names.push_back(instrument.name);
-
-  loop::PeriodicLoop periodic(*clock, loop::LoopSettings{scene->loop.period_ns,
-                                                         scene->loop.overrun_streak_limit,
-                                                         *cycles});
-  if (options.arm) (*app)->request_reset();
-
+// The RT thread: RT settings, armed (heap use counted), the periodic loop, shutdown. The
+// calling (supervisor) thread drains the log and telemetry until it ends or a signal stops it.
+core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
+                              loop::StopSignals& signals, RunResult& result) {
+  const config::SceneConfig& scene = setup.scene;
+  HapticApp& haptic = *setup.app;
+  loop::PeriodicLoop periodic(
+      *setup.clock,
+      loop::LoopSettings{scene.loop.period_ns, scene.loop.overrun_streak_limit, setup.cycles});
+  if (options.arm) haptic.request_reset();
   loop::RtRequest request;
-  request.priority = scene->loop.priority;
-  request.cpu = scene->loop.cpu;
-  request.lock_memory = scene->loop.lock_memory;
-  request.stack_prefault_bytes = scene->loop.stack_prefault_bytes;
+  request.priority = scene.loop.priority;
+  request.cpu = scene.loop.cpu;
+  request.lock_memory = scene.loop.lock_memory;
+  request.stack_prefault_bytes = scene.loop.stack_prefault_bytes;
   const bool apply_rt = options.apply_rt_settings && options.time_source == TimeSource::real;
-
   // Held until this function returns, i.e. for the whole loop.
   loop::CpuLatencyRequest cpu_latency;
-  if (apply_rt) cpu_latency = loop::CpuLatencyRequest::hold(scene->loop.cpu_dma_latency_us);
+  if (apply_rt) cpu_latency = loop::CpuLatencyRequest::hold(scene.loop.cpu_dma_latency_us);
 
   std::atomic<bool> stop{false};
   std::atomic<bool> finished{false};
-  std::uint64_t allocations = 0;
-  HapticApp& haptic = **app;
-  const auto wall_start = std::chrono::steady_clock::now();
-
   auto thread = loop::RtThread::start([&] {
     if (apply_rt) {
       result.rt = loop::apply_rt_settings(request);
@@ -168,58 +187,44 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
     core::alloc::begin_counting_this_thread();
     const std::uint64_t before = core::alloc::counted_allocations();
     periodic.run(haptic, stop);
-    allocations = core::alloc::counted_allocations() - before;
+    result.heap_allocations_after_arming = core::alloc::counted_allocations() - before;
     core::alloc::end_counting_this_thread();
-
-    // The safety record as the run left it; the shutdown latch that follows is routine.
-    const safety::SafetySupervisor& safety = haptic.safety();
-    result.latched_faults = safety.latched_faults();
-    result.first_fault = safety::to_string(safety.first_fault());
-    result.first_fault_cycle = safety.first_fault_cycle();
-    for (std::size_t k = 0; k < safety::kFaultKinds; ++k) {
-      if (safety.fault_counts()[k] == 0) continue;
-      result.fault_counts.emplace_back(safety::to_string(static_cast<safety::Fault>(1U << k)),
-                                       safety.fault_counts()[k]);
-    }
+    record_safety(haptic.safety(), result);
     haptic.shutdown();
     finished.store(true, std::memory_order_release);
   });
-  if (!thread) {
-    device.deactivate();
-    return std::move(thread).error();
-  }
-
+  if (!thread) return std::move(thread).error();
   while (!finished.load(std::memory_order_acquire)) {
     if (signals.wait_for(kSupervisorPeriodNs) != 0) {
       result.stopped_by_signal = true;
       stop.store(true, std::memory_order_release);
     }
-    drain_log(*log, options);
-    if (telemetry->update() && options.on_telemetry) options.on_telemetry(telemetry->latest());
+    drain_log(*setup.log, options);
+    if (setup.telemetry->update() && options.on_telemetry)
+      options.on_telemetry(setup.telemetry->latest());
   }
   thread->join();
   result.rt.cpu_dma_latency_us = cpu_latency.latency_us();
   if (!cpu_latency.warning().empty()) result.rt.warnings.push_back(cpu_latency.warning());
-  drain_log(*log, options);
-  device.deactivate();
+  result.loop = periodic.stats();
+  return {};
+}
 
+// What the run leaves for the report, after the loop and the device stopped.
+void collect_result(const RunSetup& setup, RunResult& result) {
   // Shutdown check through the HAL itself: every channel reports zero effort, disabled.
-  std::vector<hal::ActuatorStatus> status(device.actuators()->actuator_count());
-  (void)device.actuators()->read_actuator_status(status);
+  std::vector<hal::ActuatorStatus> status(setup.device->actuators()->actuator_count());
+  (void)setup.device->actuators()->read_actuator_status(status);
   result.outputs_zeroed_at_exit = true;
   for (const hal::ActuatorStatus& s : status) {
     if (s.applied_effort != 0.0F || s.enabled) result.outputs_zeroed_at_exit = false;
   }
-
-  result.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  result.loop = periodic.stats();
+  const HapticApp& haptic = *setup.app;
   result.app = haptic.stats();
   result.models = haptic.models();
   for (LoadedModelInfo& model : result.models) {
-    if (model.kind == config::ModelKind::catheter) {
+    if (model.kind == config::ModelKind::catheter)
       model.final_positions_m = haptic.catheter_positions_m(model.name);
-    }
   }
   const safety::SafetySupervisor& safety = haptic.safety();
   result.force_clamped_cycles = safety.clamped_cycles();
@@ -227,10 +232,38 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   result.arm_count = safety.arm_count();
   result.allocation_hooks_installed = core::alloc::hooks_installed();
   result.malloc_family_counted = core::alloc::malloc_family_counted();
-  result.heap_allocations_after_arming = allocations;
-  result.arena_bytes_used = arena->used_bytes();
-  result.arena_bytes_capacity = arena->capacity_bytes();
-  result.log_records_dropped = log->dropped();
+  result.arena_bytes_used = setup.arena->used_bytes();
+  result.arena_bytes_capacity = setup.arena->capacity_bytes();
+  result.log_records_dropped = setup.log->dropped();
+}
+
+}  // namespace
+
+core::Expected<RunResult> run_trainer(const RunOptions& options) {
+  // Block SIGINT/SIGTERM before any thread exists so every thread inherits the mask and only
+  // this supervisor thread receives them (no async handler runs on the RT thread).
+  loop::StopSignals signals;
+  RunSetup setup;
+  if (auto prepared = prepare_run(options, setup); !prepared) return std::move(prepared).error();
+
+  RunResult result;
+  result.scene_file = options.scene_file;
+  result.scene_name = setup.scene.name;
+  result.hal = options.hal;
+  result.time_source = options.time_source == TimeSource::real ? "real" : "simulated";
+  result.period_ns = setup.scene.loop.period_ns;
+  result.requested_cycles = setup.cycles;
+  for (const auto& instrument : setup.scene.instruments)
+    result.instrument_names.push_back(instrument.name);
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  auto ran = run_loop(options, setup, signals, result);
+  drain_log(*setup.log, options);
+  setup.device->deactivate();
+  if (!ran) return std::move(ran).error();
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  collect_result(setup, result);
   return result;
 }
 

@@ -66,20 +66,20 @@ namespace trainer::app {
 // Random model states through the models' own public calls (HapticApp's friend).
 class HapticAppTestAccess {
  public:
-  static std::size_t modal_count(const HapticApp& app) { return app.modal_model_count_; }
+  static std::size_t modal_count(const HapticApp& app) { return app.models_.modal_count; }
   static std::size_t modal_vertex_count(const HapticApp& app, std::size_t m) {
-    return app.modal_contacts_[m].vertex_count;
+    return app.models_.modal[m].surface.vertex_count();
   }
   // A load on a node of modal model m, applied at its next step: the path the catheters' wall
   // reactions take. False when the model's pending loads are full.
   static bool add_modal_load(HapticApp& app, std::size_t m, std::uint32_t node,
                              const Eigen::Vector3f& force_n) {
-    return HapticApp::add_catheter_load(app.modal_contacts_[m], node, force_n);
+    return app.models_.modal[m].add_catheter_load(node, force_n);
   }
-  static void reset_modal(HapticApp& app, std::size_t m) { app.modal_models_[m]->reset(); }
-  static std::size_t catheter_count(const HapticApp& app) { return app.catheter_count_; }
+  static void reset_modal(HapticApp& app, std::size_t m) { app.models_.modal[m].model->reset(); }
+  static std::size_t catheter_count(const HapticApp& app) { return app.models_.catheter_count; }
   static model::Catheter& catheter(HapticApp& app, std::size_t c) {
-    return *app.catheters_[c].catheter;
+    return *app.models_.catheters[c].catheter;
   }
 };
 

@@ -11,10 +11,10 @@ namespace trainer::app {
 constexpr std::size_t kMaxInstruments = 4;
 
 struct InstrumentTelemetry {
-  std::array<float, 5> joints{};        // pitch rad, yaw rad, insertion m, roll rad, grip rad
-  std::array<float, 3> tip_m{};         // world frame
-  std::array<float, 3> force_n{};       // commanded force on the tool after the safety chain
-  std::array<float, 5> joint_efforts{}; // commanded, joint side (N·m, N)
+  std::array<float, 5> joints{};         // pitch rad, yaw rad, insertion m, roll rad, grip rad
+  std::array<float, 3> tip_m{};          // world frame
+  std::array<float, 3> force_n{};        // commanded force on the tool after the safety chain
+  std::array<float, 5> joint_efforts{};  // commanded, joint side (N·m, N)
   bool in_contact = false;
 };
 

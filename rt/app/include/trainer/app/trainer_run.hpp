@@ -55,7 +55,7 @@ struct RunResult {
   loop::LoopStats loop;
   loop::RtReport rt;
   AppStats app;
-  std::uint32_t latched_faults = 0;        // at the end of the run, before shutdown
+  std::uint32_t latched_faults = 0;  // at the end of the run, before shutdown
   std::string first_fault;
   std::uint64_t first_fault_cycle = 0;
   std::vector<std::pair<std::string, std::uint64_t>> fault_counts;  // kinds raised, with counts

@@ -102,6 +102,12 @@ class SafetySupervisor {
   const std::array<std::uint64_t, kFaultKinds>& fault_counts() const noexcept {
     return fault_counts_;
   }
+  // Every raise of every kind, repeats included: the sum of fault_counts().
+  std::uint64_t raised_fault_total() const noexcept {
+    std::uint64_t total = 0;
+    for (const std::uint64_t count : fault_counts_) total += count;
+    return total;
+  }
   std::uint64_t clamped_cycles() const noexcept { return clamped_cycles_; }
   std::uint64_t slew_limited_cycles() const noexcept { return slew_limited_cycles_; }
   std::uint32_t arm_count() const noexcept { return arm_count_; }

@@ -1,0 +1,97 @@
+// The deformable surface of one soft-tissue model (a modal duct or a Cotin tensor model) as the
+// tools see it: its placement in the trainer frame, the deformed positions (model frame), the
+// bucket grid over them and a displacement-driven tip contact per instrument that may touch it.
+// The model stages (modal_stage, tensor_stage) own the surface of their models; the catheter
+// stage reads the modal models' surfaces.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+
+#include <Eigen/Core>
+
+#include "trainer/app/cycle_frame.hpp"
+#include "trainer/app/rigid_transform.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/core/arena.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/model/bucket_grid.hpp"
+#include "trainer/model/displacement_contact.hpp"
+
+namespace trainer::app {
+
+// The forceps tip as seen by soft-tissue contact: a sphere of this radius at the closed jaws'
+// tip (jaws of a 5 mm instrument taper to about 2 mm).
+inline constexpr float kForcepsTipRadiusM = 0.001F;
+// The instrument's capsules against walls and catheters (a 5 mm instrument, jaws tapering to
+// 2 mm).
+inline constexpr float kShaftRadiusM = 0.0025F;
+inline constexpr float kJawRadiusM = 0.001F;
+// How far outside a model's rest mesh a tool tip must be for the model's surface to be left
+// stale: more than the model deforms plus one cycle of tool travel.
+inline constexpr float kSurfaceMarginM = 0.02F;
+// Slack of the surfaces' bucket grids, in cells: a rebuild stores every triangle with its box
+// grown by it, so the grid stays right until a vertex has moved that far (BucketGrid). A
+// quarter cell (~0.75 mm on the duct) triples the (triangle, cell) entries of a duct-like tube
+// (1,568 → 4,864, within max_entries = 27 per triangle) and rebuilds only when the wall has
+// moved that far instead of every cycle (docs/collision.md).
+inline constexpr float kGridSlackCells = 0.25F;
+
+struct ContactSurface {
+  RigidTransform transform;                  // model frame → trainer frame ([[model]] placement)
+  std::uint32_t touched_by_mask = 0;         // bit per instrument that may touch the model
+  std::span<const float> rest_positions;     // 3n, model frame (the image's)
+  std::span<const std::uint32_t> triangles;  // 3 per triangle (the image's)
+  std::span<float> deformed;                 // 3n, model frame
+  std::optional<model::BucketGrid> grid;     // none when nothing collides with the model
+  std::array<std::optional<model::DisplacementContact>, kMaxInstruments> contacts{};
+  // The rest mesh's box grown by kSurfaceMarginM: while no tool (or particle) is inside it and
+  // no contact holds, the surface is not rebuilt (a tool far away costs nothing).
+  model::Aabb near_box{};
+  bool surface_ready = false;       // deformed and grid are this cycle's
+  std::span<float> grid_positions;  // 3n: the surface the grid was last rebuilt over
+  bool grid_built = false;
+
+  std::size_t vertex_count() const noexcept { return rest_positions.size() / 3; }
+  model::TriangleMeshView view() const noexcept { return {deformed, triangles}; }
+  // Is the trainer-frame point inside near_box (model frame)?
+  bool near(const Eigen::Vector3f& world_m) const noexcept;
+  // Makes the grid answer for `deformed`: rebuilt with a slack of kGridSlackCells cells, and only
+  // when some vertex has moved farther than the slack since the last rebuild. Sets and returns
+  // surface_ready (false on a refusal, e.g. a non-finite surface).
+  bool refit_grid() noexcept;
+  // Instrument i's tip contact this cycle: update() with the tip's path, then the imposed
+  // displacements of its material point into `out`; returns how many (0 when free). A refused
+  // update counts in `errors`.
+  std::size_t tip_targets(std::size_t instrument, const InstrumentFrame& frame,
+                          std::span<model::ImposedDisplacement> out,
+                          std::uint64_t& errors) noexcept;
+  // After a solve, `on_tissue_n[i]` the force (model frame) tip i's targets put on the tissue:
+  // each holding tip checks it (a tip that would pull the tissue lets go). True when one did.
+  bool observe_tip_forces(std::span<const Eigen::Vector3f> on_tissue_n) noexcept;
+  // The holding tips feel the opposite of on_tissue_n (trainer frame) at the tip; returns the
+  // sum on the tissue, `any` set when a tip holds.
+  Eigen::Vector3f apply_tip_reactions(std::span<const Eigen::Vector3f> on_tissue_n,
+                                      std::span<InstrumentFrame> instruments,
+                                      bool& any) const noexcept;
+  void release_all() noexcept;
+};
+
+// The placement, the deformed copy of the rest surface and — when an instrument may touch the
+// model or `with_grid` (a catheter collides with it) — its bucket grid: cells 1.5 × the rest
+// mesh's longest edge, near_box from the rest mesh. Contacts are added by the caller.
+core::Expected<ContactSurface> make_contact_surface(const config::SceneModelConfig& entry,
+                                                    std::span<const float> rest_positions,
+                                                    std::span<const std::uint32_t> triangles,
+                                                    bool with_grid, core::Arena& arena);
+
+// A forceps tip on `surface` that never displaces `held_nodes` (strictly increasing). A grid
+// query can never return more than every triangle: sized so, no contact is ever lost to a full
+// candidate list (a few kB per contact on these meshes).
+core::Expected<model::DisplacementContact> make_tip_contact(
+    const ContactSurface& surface, std::span<const std::uint32_t> held_nodes, core::Arena& arena);
+
+}  // namespace trainer::app

@@ -1,0 +1,51 @@
+// The cycle as a list (shared/STYLE.md, "The cycle as a list"): the app registers, once at
+// configure time, the stages a scene needs in the order of shared/DESIGN.md's "One cycle";
+// run() calls each with the cycle's frame and times it into its phase's histogram. A stage
+// never calls another; what one stage leaves for the next is in the CycleFrame.
+//
+// Timing uses the clock given at construction (the trainer gives the real monotonic clock, so
+// the split means the same in simulated time); one clock read per stage boundary.
+#pragma once
+
+#include <array>
+#include <cstddef>
+
+#include "trainer/app/app_stats.hpp"
+#include "trainer/app/cycle_frame.hpp"
+#include "trainer/core/clock.hpp"
+
+namespace trainer::app {
+
+class CycleStage {
+ public:
+  virtual ~CycleStage() = default;
+  // RT path: noexcept, no heap, no blocking beyond the stage's own bounded HAL I/O.
+  virtual void run(CycleFrame& frame) noexcept = 0;
+};
+
+class StageRunner {
+ public:
+  explicit StageRunner(core::Clock& clock) noexcept : clock_(clock) {}
+
+  // Setup path. Stages run in the order added; false when `phase` is already taken or out of
+  // order (a phase before one already added): the list is DESIGN.md's order, not the caller's.
+  bool add(CyclePhase phase, CycleStage& stage) noexcept;
+
+  // RT path: every stage in order, each timed into phase_ns[phase].
+  void run(CycleFrame& frame,
+           std::array<core::LatencyHistogram, kCyclePhaseCount>& phase_ns) noexcept;
+
+  std::size_t stage_count() const noexcept { return count_; }
+  bool has(CyclePhase phase) const noexcept;
+
+ private:
+  struct Entry {
+    CyclePhase phase = CyclePhase::hal_read;
+    CycleStage* stage = nullptr;
+  };
+  core::Clock& clock_;
+  std::array<Entry, kCyclePhaseCount> stages_{};
+  std::size_t count_ = 0;
+};
+
+}  // namespace trainer::app
