@@ -6,6 +6,10 @@
 #                            catheter insertion), report in out/
 #   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
 #                            suite, the ASan+UBSan unit tests and the TSan concurrency tests
+#   tools/bootstrap.sh bench [benchmark args]
+#                            install, build, build the cbd and liver images, run the cycle
+#                            benchmark (bench_cycle: the whole cycle and each stage of the
+#                            reference scenes, compute only; docs/performance.md)
 #   tools/bootstrap.sh jitter
 #                            install, build, build the scene's model images, run the timing
 #                            acceptance test (jitter: the loop with the scene's workload against
@@ -52,6 +56,17 @@ case "$mode" in
     echo "== trainer ${args[*]}"
     exec build/release/bin/trainer --hal sim "${args[@]}"
     ;;
+  bench)
+    tools/install-deps.sh
+    build release bench_cycle modelc
+    mkdir -p out
+    for scene in config/scenes/cbd.toml config/scenes/liver.toml; do
+      echo "== modelc build --scene $scene"
+      build/release/bin/modelc build --scene "$scene" --report "out/models_$(basename "$scene" .toml).json"
+    done
+    echo "== bench_cycle $*"
+    exec build/release/bench/bench_cycle "$@"
+    ;;
   jitter)
     tools/install-deps.sh
     build release jitter modelc
@@ -76,7 +91,7 @@ case "$mode" in
     echo "== all test suites passed"
     ;;
   *)
-    echo "usage: tools/bootstrap.sh run [trainer args...] | test | jitter [jitter args...]" >&2
+    echo "usage: tools/bootstrap.sh run [trainer args...] | test | bench [benchmark args...] | jitter [jitter args...]" >&2
     exit 2
     ;;
 esac

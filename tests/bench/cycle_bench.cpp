@@ -1,66 +1,202 @@
-// Cost of one haptic cycle of the wall scene, measured on a manual clock so only computation is
-// timed (no sleeping): HAL read/write through the simulated backend, kinematics, contact,
-// safety, publish. The clock is rewound every 400 ms of simulated time to stay in the pressed
-// phase; the simulated plant integrates only when time passes its last point, so nearly every
-// timed cycle is the controller's own work (a hardware backend does no physics either).
+// The whole haptic cycle as the trainer runs it, and each of its stages, on a manual clock so
+// only computation is timed (no sleeping). Each session is a scene's scripted trainee driving
+// the simulated bench from its first cycle to the end of its script, state advancing as in a
+// `trainer --time simulated` run; the benchmark runs whole sessions back to back (a fresh app,
+// arena and device each), so its distribution is the run's, not one lucky phase.
+//
+//   BM_SceneCycle/<scene>         the full cycle (run_cycle: HAL read, with the simulated
+//                                 plant's integration, to publish), one iteration per cycle
+//   BM_CbdStage/<stage>           the cbd cycle again, each iteration timed as one stage alone
+//                                 (the StageRunner's own clock reads, as the report's split)
+// Counters: p50/p99/p99.9/max of the per-cycle time (µs) and heap allocations per cycle
+// (counted by the allocation hooks). Times are real-clock, warm caches: compute only.
+//
+// Needs the scenes' model images: `modelc build --scene config/scenes/cbd.toml` (and liver);
+// tools/bootstrap.sh bench builds them and runs this. docs/performance.md has the figures.
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+#include <cstdint>
 #include <memory>
+#include <optional>
+#include <string>
 
 #include "trainer/app/haptic_app.hpp"
 #include "trainer/app/sim_wiring.hpp"
 #include "trainer/config/scene.hpp"
+#include "trainer/core/alloc_counter.hpp"
+#include "trainer/core/histogram.hpp"
 #include "trainer/hal_sim/sim_device.hpp"
 
 namespace {
 
 using namespace trainer;
 
-void BM_WallSceneCycle(benchmark::State& state) {
-  auto scene = config::load_scene(std::string(TRAINER_SOURCE_DIR) + "/config/scenes/wall.toml");
-  if (!scene) {
-    state.SkipWithError(scene.error().message.c_str());
+// One scene on the simulated bench in simulated time, armed, from cycle 0 to the script's end.
+class SceneSession {
+ public:
+  static std::unique_ptr<SceneSession> open(const std::string& scene_file, std::string& error) {
+    auto scene = config::load_scene(std::string(TRAINER_SOURCE_DIR) + "/" + scene_file);
+    if (!scene) {
+      error = scene.error().message;
+      return nullptr;
+    }
+    std::unique_ptr<SceneSession> session(new SceneSession(std::move(*scene)));
+    if (auto started = session->start(); !started) {
+      error = started.error().message;
+      return nullptr;
+    }
+    return session;
+  }
+  ~SceneSession() {
+    app_.reset();
+    device_->deactivate();
+  }
+
+  bool finished() const noexcept { return cycle_ >= cycles_; }
+  void step() noexcept {
+    clock_.advance_ns(scene_.loop.period_ns);
+    timing_.cycle_index = cycle_++;
+    timing_.wake_ns = timing_.deadline_ns = clock_.now_ns();
+    benchmark::DoNotOptimize(app_->run_cycle(timing_));
+  }
+  const app::HapticApp& app() const noexcept { return *app_; }
+
+ private:
+  explicit SceneSession(config::SceneConfig scene) : scene_(std::move(scene)) {}
+  core::Expected<void> start() {
+    device_ = std::make_unique<hal::sim::SimDevice>(clock_, app::sim_params_from(scene_));
+    if (auto ok = device_->configure(); !ok) return ok;
+    if (auto ok = device_->activate(); !ok) return ok;
+    auto arena = core::Arena::create(scene_.memory.arena_bytes);
+    if (!arena) return std::move(arena).error();
+    arena_.emplace(std::move(*arena));
+    auto app = app::HapticApp::create(scene_,
+                                      {device_->encoders(), device_->actuators(),
+                                       device_->digital_inputs(), device_->digital_outputs()},
+                                      *arena_, log_, telemetry_, clock_);
+    if (!app) return std::move(app).error();
+    app_ = std::move(*app);
+    arena_->seal();
+    app_->request_reset();
+    // As the trainer runs a scripted scene: the script, then half a second more.
+    const double period_s = static_cast<double>(scene_.loop.period_ns) * 1e-9;
+    cycles_ =
+        static_cast<std::uint64_t>(std::ceil((device_->script_duration_s() + 0.5) / period_s));
+    timing_.dt_s = period_s;
+    return {};
+  }
+
+  config::SceneConfig scene_;
+  core::ManualClock clock_{0};
+  std::unique_ptr<hal::sim::SimDevice> device_;
+  std::optional<core::Arena> arena_;
+  core::LogRing log_;
+  core::TripleBuffer<app::TelemetrySnapshot> telemetry_;
+  std::unique_ptr<app::HapticApp> app_;
+  loop::CycleTiming timing_{};
+  std::uint64_t cycle_ = 0;
+  std::uint64_t cycles_ = 0;
+};
+
+// Runs whole sessions of `scene_file`, one cycle per iteration; the iteration's time is the
+// full cycle, or only `stage` when given.
+void run_sessions(benchmark::State& state, const std::string& scene_file,
+                  std::optional<app::CyclePhase> stage) {
+  std::string error;
+  auto session = SceneSession::open(scene_file, error);
+  if (!session) {
+    state.SkipWithError(
+        (error + " (build the images: modelc build --scene " + scene_file + ")").c_str());
     return;
   }
-  core::ManualClock clock(0);
-  hal::sim::SimDevice device(clock, app::sim_params_from(*scene));
-  if (!device.configure() || !device.activate()) {
-    state.SkipWithError("sim device did not start");
-    return;
-  }
-  auto arena = core::Arena::create(scene->memory.arena_bytes);
-  core::LogRing log;
-  core::TripleBuffer<app::TelemetrySnapshot> telemetry;
-  auto haptic = app::HapticApp::create(
-      *scene, {device.encoders(), device.actuators(), device.digital_inputs(), device.digital_outputs()},
-      *arena, log, telemetry, clock);
-  if (!haptic) {
-    state.SkipWithError(haptic.error().message.c_str());
-    return;
-  }
-  (*haptic)->request_reset();
-  const std::int64_t period = scene->loop.period_ns;
-  loop::CycleTiming timing{};
-  timing.dt_s = static_cast<double>(period) * 1e-9;
-  // Start in contact with the wall (the script presses it at 6-7 s) so the contact path runs.
-  for (std::uint64_t i = 0; i < 6500; ++i) {
-    clock.advance_ns(period);
-    timing.cycle_index = i;
-    timing.wake_ns = timing.deadline_ns = clock.now_ns();
-    (void)(*haptic)->run_cycle(timing);
-  }
-  std::uint64_t cycle = 6500;
+  core::MonotonicClock clock;
+  core::LatencyHistogram cycle_ns;
+  std::uint64_t sessions = 1;
+  std::uint64_t allocations = 0;
   for (auto _ : state) {
-    // Rewind into the pressed phase so every measured cycle is in contact.
-    if (clock.now_ns() > 6'900'000'000) clock.advance_ns(-400'000'000);
-    clock.advance_ns(period);
-    timing.cycle_index = cycle++;
-    timing.wake_ns = timing.deadline_ns = clock.now_ns();
-    benchmark::DoNotOptimize((*haptic)->run_cycle(timing));
+    if (session->finished()) {
+      state.PauseTiming();
+      session.reset();
+      session = SceneSession::open(scene_file, error);
+      ++sessions;
+      state.ResumeTiming();
+      if (!session) {
+        state.SkipWithError(error.c_str());
+        return;
+      }
+    }
+    core::alloc::begin_counting_this_thread();
+    const std::uint64_t before = core::alloc::counted_allocations();
+    const std::int64_t start_ns = clock.now_ns();
+    session->step();
+    const std::int64_t cycle_time_ns = clock.now_ns() - start_ns;
+    allocations += core::alloc::counted_allocations() - before;
+    core::alloc::end_counting_this_thread();
+    const std::int64_t ns = stage ? session->app().last_stage_ns(*stage) : cycle_time_ns;
+    cycle_ns.record(ns);
+    state.SetIterationTime(static_cast<double>(ns) * 1e-9);
   }
-  state.counters["armed"] = (*haptic)->safety().armed() ? 1 : 0;
+  const auto us = [&](double q) { return static_cast<double>(cycle_ns.percentile_ns(q)) * 1e-3; };
+  state.counters["p50_us"] = us(0.5);
+  state.counters["p99_us"] = us(0.99);
+  state.counters["p99.9_us"] = us(0.999);
+  state.counters["max_us"] = static_cast<double>(cycle_ns.max_ns()) * 1e-3;
+  state.counters["sessions"] = static_cast<double>(sessions);
+  state.counters["heap_allocations_per_cycle"] =
+      static_cast<double>(allocations) / static_cast<double>(state.iterations());
 }
-BENCHMARK(BM_WallSceneCycle);
+
+// Three whole sessions of each scene's script (cbd 11 s, liver 16 s, wall 10 s at 1 kHz).
+constexpr std::int64_t kCbdIterations = 3 * 11'000;
+
+void BM_SceneCycle(benchmark::State& state, const std::string& scene_file) {
+  run_sessions(state, scene_file, std::nullopt);
+}
+BENCHMARK_CAPTURE(BM_SceneCycle, cbd, std::string("config/scenes/cbd.toml"))
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_SceneCycle, liver, std::string("config/scenes/liver.toml"))
+    ->UseManualTime()
+    ->Iterations(3 * 16'000)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_SceneCycle, wall, std::string("config/scenes/wall.toml"))
+    ->UseManualTime()
+    ->Iterations(3 * 10'000)
+    ->Unit(benchmark::kMicrosecond);
+
+void BM_CbdStage(benchmark::State& state, app::CyclePhase stage) {
+  run_sessions(state, "config/scenes/cbd.toml", stage);
+}
+BENCHMARK_CAPTURE(BM_CbdStage, hal_read, app::CyclePhase::hal_read)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_CbdStage, kinematics, app::CyclePhase::kinematics)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_CbdStage, modal_models, app::CyclePhase::modal_models)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_CbdStage, catheters, app::CyclePhase::catheters)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_CbdStage, forces, app::CyclePhase::forces)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_CbdStage, hal_write, app::CyclePhase::hal_write)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_CbdStage, publish, app::CyclePhase::publish)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -27,7 +27,9 @@ void StageRunner::run(CycleFrame& frame,
   for (std::size_t k = 0; k < count_; ++k) {
     stages_[k].stage->run(frame);
     const std::int64_t end_ns = clock_.now_ns();
-    phase_ns[static_cast<std::size_t>(stages_[k].phase)].record(end_ns - start_ns);
+    const auto phase = static_cast<std::size_t>(stages_[k].phase);
+    phase_ns[phase].record(end_ns - start_ns);
+    last_ns_[phase] = end_ns - start_ns;
     start_ns = end_ns;
   }
 }

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <span>
@@ -66,8 +67,9 @@ class HapticApp final : public loop::CycleTask {
   const safety::SafetySupervisor& safety() const noexcept { return safety_; }
   std::size_t instrument_count() const noexcept { return frame_.instruments.size(); }
   const std::vector<LoadedModelInfo>& models() const noexcept { return models_.info; }
-  // The stages this scene runs, in order.
+  // The stages this scene runs, in order, and what each took in the last cycle (ns).
   std::vector<CyclePhase> stage_phases() const;
+  std::int64_t last_stage_ns(CyclePhase phase) const noexcept { return runner_.last_ns(phase); }
   // Placement of the model named `name` (model frame → trainer frame), nullopt if the scene
   // has no such model. model_transform(index) is the same for models()[index].
   std::optional<RigidTransform> model_transform(const std::string& name) const;

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 
 #include "trainer/app/app_stats.hpp"
 #include "trainer/app/cycle_frame.hpp"
@@ -37,6 +38,11 @@ class StageRunner {
 
   std::size_t stage_count() const noexcept { return count_; }
   bool has(CyclePhase phase) const noexcept;
+  // What each stage took in the last run() (ns; 0 for a phase not run). The cycle benchmark
+  // reads it, so its per-stage figures are the same clock reads as the report's split.
+  std::int64_t last_ns(CyclePhase phase) const noexcept {
+    return last_ns_[static_cast<std::size_t>(phase)];
+  }
 
  private:
   struct Entry {
@@ -45,6 +51,7 @@ class StageRunner {
   };
   core::Clock& clock_;
   std::array<Entry, kCyclePhaseCount> stages_{};
+  std::array<std::int64_t, kCyclePhaseCount> last_ns_{};
   std::size_t count_ = 0;
 };
 
