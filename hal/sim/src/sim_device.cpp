@@ -2,6 +2,8 @@
 // the RT read/write calls, fault injection.
 #include "trainer/hal_sim/sim_device.hpp"
 
+#include "text_format.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -18,11 +20,7 @@ constexpr double kSecondsPerNanosecond = 1e-9;
 // keeps the discrete plant close to the continuous one, not merely bounded.
 constexpr double kStabilityBound = 2.0;
 
-std::string format_number(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
+using detail::format_number;
 
 bool take_one(std::atomic<std::uint32_t>& counter) noexcept {
   std::uint32_t current = counter.load(std::memory_order_relaxed);

@@ -1,6 +1,8 @@
 // Scripted trainee: CSV parsing, the built-in scripts and minimum-jerk sampling.
 #include "trainer/hal_sim/trainee_script.hpp"
 
+#include "text_format.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -37,11 +39,7 @@ std::vector<std::string_view> split_fields(std::string_view line) {
   }
 }
 
-std::string format_number(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
+using detail::format_number;
 
 std::string known_names(std::span<const std::string> names) {
   std::string joined;

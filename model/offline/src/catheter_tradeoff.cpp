@@ -24,7 +24,7 @@ constexpr std::uint32_t kUnboundedSubsteps = std::numeric_limits<std::uint32_t>:
 // Catheter state is a few arrays of N vectors and the planes: far below this.
 constexpr std::size_t kArenaBytes = std::size_t{1} << 20;
 
-std::string number(double value) {
+std::string significant_text(double value) {
   char text[32];
   std::snprintf(text, sizeof text, "%.6g", value);
   return text;
@@ -41,9 +41,9 @@ core::Expected<int> periods_of(const CatheterScenario& scenario, double period_s
   const double periods = scenario.duration_s / period_s;
   if (!(periods >= 1.0) || std::abs(periods - std::round(periods)) > 1e-6) {
     return core::make_error("catheter trade study: scenario '" + scenario.name + "': duration " +
-                            number(scenario.duration_s) +
+                            significant_text(scenario.duration_s) +
                             " s, expected a whole number (>= 1) of haptic periods of " +
-                            number(period_s) + " s");
+                            significant_text(period_s) + " s");
   }
   return static_cast<int>(std::lround(periods));
 }
@@ -288,7 +288,7 @@ class ScenarioDriver {
       const long front = std::lround(scenario.grasp_arc_length_m / driver->segment_m_);
       if (front < 1 || front > static_cast<long>(particle_count) - 2) {
         return core::make_error("catheter trade study: scenario '" + scenario.name +
-                                "': grasp at " + number(scenario.grasp_arc_length_m) +
+                                "': grasp at " + significant_text(scenario.grasp_arc_length_m) +
                                 " m is particle " + std::to_string(front) + " of N = " +
                                 std::to_string(particle_count) +
                                 ", expected 1..N-2 (a held segment and a free tip)");
@@ -411,26 +411,26 @@ core::Expected<void> check_scenario(const CatheterScenario& scenario, double len
   };
   if (scenario.kind == CatheterScenarioKind::insertion) {
     if (!(scenario.grasp_arc_length_m > 0.0 && scenario.grasp_arc_length_m < length_m)) {
-      return refuse("grasp arc length " + number(scenario.grasp_arc_length_m) +
-                    " m, expected inside (0, " + number(length_m) + ") m");
+      return refuse("grasp arc length " + significant_text(scenario.grasp_arc_length_m) +
+                    " m, expected inside (0, " + significant_text(length_m) + ") m");
     }
     if (!(scenario.push_m > 0.0) || !std::isfinite(scenario.push_m) ||
         !(scenario.push_time_s > 0.0) || !std::isfinite(scenario.push_time_s)) {
-      return refuse("push " + number(scenario.push_m) + " m over " +
-                    number(scenario.push_time_s) + " s, expected both finite and > 0");
+      return refuse("push " + significant_text(scenario.push_m) + " m over " +
+                    significant_text(scenario.push_time_s) + " s, expected both finite and > 0");
     }
     if (!(scenario.wall_angle_deg > 0.0 && scenario.wall_angle_deg <= 90.0)) {
-      return refuse("wall angle " + number(scenario.wall_angle_deg) +
+      return refuse("wall angle " + significant_text(scenario.wall_angle_deg) +
                     " degrees, expected in (0, 90]");
     }
     if (!(scenario.wall_gap_m >= 0.0) || !std::isfinite(scenario.wall_gap_m)) {
-      return refuse("wall gap " + number(scenario.wall_gap_m) + " m, expected finite and >= 0");
+      return refuse("wall gap " + significant_text(scenario.wall_gap_m) + " m, expected finite and >= 0");
     }
   } else {
     if (!(scenario.tip_load > 0.0) || !std::isfinite(scenario.tip_load) ||
         !(scenario.load_time_s > 0.0) || !std::isfinite(scenario.load_time_s)) {
-      return refuse("tip load F L^2/EI = " + number(scenario.tip_load) + " over " +
-                    number(scenario.load_time_s) + " s, expected both finite and > 0");
+      return refuse("tip load F L^2/EI = " + significant_text(scenario.tip_load) + " over " +
+                    significant_text(scenario.load_time_s) + " s, expected both finite and > 0");
     }
   }
   return {};
@@ -515,23 +515,23 @@ core::Expected<std::unique_ptr<CatheterTradeStudy>> CatheterTradeStudy::create(
     CatheterStudySpec spec, std::vector<CatheterScenario> scenarios) {
   if (!(spec.haptic_period_s > 0.0) || !std::isfinite(spec.haptic_period_s)) {
     return core::make_error("catheter trade study: haptic period " +
-                            number(spec.haptic_period_s) + " s, expected finite and > 0");
+                            significant_text(spec.haptic_period_s) + " s, expected finite and > 0");
   }
   if (spec.max_substeps == 0) {
     return core::make_error("catheter trade study: max_substeps = 0, expected >= 1");
   }
   if (scenarios.empty()) return core::make_error("catheter trade study: no scenarios");
   if (!(spec.force_window_s >= 0.0) || !std::isfinite(spec.force_window_s)) {
-    return core::make_error("catheter trade study: force window " + number(spec.force_window_s) +
+    return core::make_error("catheter trade study: force window " + significant_text(spec.force_window_s) +
                             " s, expected finite and >= 0 (0: compare every period)");
   }
   if (!(spec.contact.stiffness_n_per_m > 0.0) || !(spec.contact.damping_n_s_per_m >= 0.0) ||
       !(spec.contact.max_force_n > 0.0) || !(spec.contact.detection_margin_m >= 0.0)) {
     return core::make_error(
-        "catheter trade study: wall contact stiffness " + number(spec.contact.stiffness_n_per_m) +
-        " N/m, damping " + number(spec.contact.damping_n_s_per_m) + " N*s/m, max force " +
-        number(spec.contact.max_force_n) + " N, margin " +
-        number(spec.contact.detection_margin_m) +
+        "catheter trade study: wall contact stiffness " + significant_text(spec.contact.stiffness_n_per_m) +
+        " N/m, damping " + significant_text(spec.contact.damping_n_s_per_m) + " N*s/m, max force " +
+        significant_text(spec.contact.max_force_n) + " N, margin " +
+        significant_text(spec.contact.detection_margin_m) +
         " m: expected stiffness > 0, damping >= 0, max force > 0, margin >= 0");
   }
   // The definition itself must make a catheter (its budget is checked per configuration).
@@ -582,9 +582,9 @@ core::Expected<std::unique_ptr<CatheterTradeStudy>> CatheterTradeStudy::create(
       if (std::abs(fine->grasp_arc_length_m - history->grasp_arc_length_m) > 1e-9) {
         return core::make_error(
             "catheter trade study: scenario '" + scenario.name + "': the grasp at " +
-            number(scenario.grasp_arc_length_m) + " m is held at " +
-            number(fine->grasp_arc_length_m) + " m by N = " + std::to_string(n) + " but at " +
-            number(history->grasp_arc_length_m) + " m by N = " + std::to_string(count) +
+            significant_text(scenario.grasp_arc_length_m) + " m is held at " +
+            significant_text(fine->grasp_arc_length_m) + " m by N = " + std::to_string(n) + " but at " +
+            significant_text(history->grasp_arc_length_m) + " m by N = " + std::to_string(count) +
             ": extrapolation needs a grasp on a particle of all three (or a plain reference)");
       }
     }

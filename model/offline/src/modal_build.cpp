@@ -1,5 +1,7 @@
 #include "trainer/model_offline/modal_build.hpp"
 
+#include "elapsed.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,9 +19,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using detail::seconds_since;
 
 // Measured on the default duct (336 nodes, 960 translational dofs, r = 20): sparse
 // shift-invert 25 ms, dense condensation 750 ms. Shift-invert is the default; only when every

@@ -2,6 +2,8 @@
 // (tensor_build.hpp).
 #include "trainer/model_offline/tensor_build.hpp"
 
+#include "elapsed.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,9 +24,7 @@ namespace {
 
 using RowMatrix3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+using detail::seconds_since;
 
 core::Expected<void> check_node_list(std::span<const int> nodes, int node_count,
                                      const char* what) {

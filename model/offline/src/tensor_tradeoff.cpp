@@ -2,6 +2,8 @@
 // node imposed, per-cap force errors and the solve's cycle cost (tensor_tradeoff.hpp).
 #include "trainer/model_offline/tensor_tradeoff.hpp"
 
+#include "elapsed.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -40,9 +42,7 @@ std::vector<int> sorted_unique(std::vector<int> nodes) {
   return nodes;
 }
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using detail::seconds_since;
 
 // The runtime's quasi-non-linear force rule (TensorModel::solve): the total force's part along
 // the push `direction` (unit, or zero: no map) goes through force_colinear and the rest

@@ -12,6 +12,10 @@
 
 namespace trainer::model::detail {
 
+// Below this centre-to-surface distance (m) a contact direction (c − p)/|c − p| is not trusted
+// and the pseudo-normal gives the contact normal instead.
+inline constexpr float kMinDirectionDistanceM = 1e-9F;
+
 inline Vec3 vertex_position(const TriangleMeshView& mesh, std::uint32_t vertex) noexcept {
   const std::size_t base = 3 * static_cast<std::size_t>(vertex);
   return {mesh.positions_m[base], mesh.positions_m[base + 1], mesh.positions_m[base + 2]};

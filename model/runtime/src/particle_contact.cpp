@@ -18,9 +18,7 @@ using detail::triangle_vertices;
 using detail::vertex_position;
 
 constexpr std::uint32_t kNoSlot = std::numeric_limits<std::uint32_t>::max();
-// Below this centre-to-surface distance (m) the direction (c − p)/|c − p| is not trusted and
-// the pseudo-normal gives the contact normal instead.
-constexpr float kMinDirectionDistanceM = 1e-9F;
+using detail::kMinDirectionDistanceM;
 
 bool share_vertex(const std::uint32_t (&first)[3], const std::uint32_t (&second)[3]) noexcept {
   return contains(second, first[0]) || contains(second, first[1]) || contains(second, first[2]);

@@ -1,6 +1,8 @@
 // God-object proxy by surface walking; see proxy.hpp.
 #include "trainer/model/proxy.hpp"
 
+#include "mesh_access.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -8,20 +10,17 @@
 namespace trainer::model {
 namespace {
 
-struct Corners {
+struct TriangleCorners {
   Vec3 a;
   Vec3 b;
   Vec3 c;
 };
 
-Vec3 vertex_position(const TriangleMeshView& mesh, std::uint32_t vertex) noexcept {
-  const std::size_t base = 3 * static_cast<std::size_t>(vertex);
-  return {mesh.positions_m[base], mesh.positions_m[base + 1], mesh.positions_m[base + 2]};
-}
+using detail::vertex_position;
 
 // False when the triangle id or one of its vertices is outside the mesh (a grid built from
 // other arrays); the triangle is then skipped.
-bool corners_of(const TriangleMeshView& mesh, std::uint32_t triangle, Corners& corners) noexcept {
+bool corners_of(const TriangleMeshView& mesh, std::uint32_t triangle, TriangleCorners& corners) noexcept {
   const std::size_t base = 3 * static_cast<std::size_t>(triangle);
   if (base + 2 >= mesh.triangles.size()) return false;
   const std::size_t vertex_count = mesh.positions_m.size() / 3;
@@ -34,7 +33,7 @@ bool corners_of(const TriangleMeshView& mesh, std::uint32_t triangle, Corners& c
 }
 
 // Interior angle of the triangle at `vertex` (0, 1, 2), radians.
-float corner_angle(const Corners& corners, int vertex) noexcept {
+float corner_angle(const TriangleCorners& corners, int vertex) noexcept {
   const Vec3* points[3] = {&corners.a, &corners.b, &corners.c};
   const Vec3& apex = *points[vertex];
   const Vec3 first = *points[(vertex + 1) % 3] - apex;
@@ -98,7 +97,7 @@ core::Status GodObjectProxy::first_crossing(const Vec3& p0, const Vec3& p1,
   if (!status.is_ok()) return status;
   float best_t = INFINITY;
   for (std::size_t index = 0; index < count; ++index) {
-    Corners corners{};
+    TriangleCorners corners{};
     if (!corners_of(mesh, candidates_[index], corners)) continue;
     const SegmentTriangleHit crossing =
         intersect_segment_triangle(p0, p1, corners.a, corners.b, corners.c);
@@ -121,7 +120,7 @@ core::Status GodObjectProxy::nearest_within_radius(const Vec3& tool_m, const Tri
   if (!status.is_ok()) return status;
   float best_distance = settings_.tool_radius_m;
   for (std::size_t index = 0; index < count; ++index) {
-    Corners corners{};
+    TriangleCorners corners{};
     if (!corners_of(mesh, candidates_[index], corners)) continue;
     const TrianglePoint closest = closest_point_on_triangle(tool_m, corners.a, corners.b, corners.c);
     const Vec3 offset = tool_m - closest.point;
@@ -150,7 +149,7 @@ core::Status GodObjectProxy::walk(const Vec3& tool_m, const TriangleMeshView& me
     SurfacePoint best = point;
     float best_distance = (tool_m - point.point_m).norm();
     for (std::size_t index = 0; index < count; ++index) {
-      Corners corners{};
+      TriangleCorners corners{};
       if (!corners_of(mesh, candidates_[index], corners)) continue;
       const TrianglePoint here =
           closest_point_on_triangle(point.point_m, corners.a, corners.b, corners.c);
@@ -173,7 +172,7 @@ core::Status GodObjectProxy::walk(const Vec3& tool_m, const TriangleMeshView& me
       // Part of the way: the segment lies in best's triangle (it holds both ends).
       point.point_m += move * (budget / length);
       point.triangle = best.triangle;
-      Corners corners{};
+      TriangleCorners corners{};
       if (corners_of(mesh, best.triangle, corners)) {
         const TrianglePoint here =
             closest_point_on_triangle(point.point_m, corners.a, corners.b, corners.c);
@@ -199,7 +198,7 @@ core::Status GodObjectProxy::pseudo_normal(const SurfacePoint& point, const Tria
       grid.query(Aabb::around_point(point.point_m, tolerance), candidates_, count);
   if (!status.is_ok()) return status;
   for (std::size_t index = 0; index < count; ++index) {
-    Corners corners{};
+    TriangleCorners corners{};
     if (!corners_of(mesh, candidates_[index], corners)) continue;
     const TrianglePoint here =
         closest_point_on_triangle(point.point_m, corners.a, corners.b, corners.c);
@@ -259,7 +258,7 @@ core::Status GodObjectProxy::advance(const Vec3& tool_m, const Vec3& tool_veloci
   if (contact_.in_contact) {
     SurfacePoint point{contact_.surface_point_m, contact_.barycentric, contact_.triangle,
                        contact_.feature};
-    Corners current{};
+    TriangleCorners current{};
     if (corners_of(mesh, point.triangle, current)) {  // follow the deformed triangle
       point.point_m = point.barycentric[0] * current.a + point.barycentric[1] * current.b +
                       point.barycentric[2] * current.c;
@@ -281,7 +280,7 @@ core::Status GodObjectProxy::advance(const Vec3& tool_m, const Vec3& tool_veloci
       // On a face that is exactly the face normal (not the rounded offset direction); on an
       // edge or vertex it lies in the normal cone.
       Vec3 direction = normal;
-      Corners walked{};
+      TriangleCorners walked{};
       if (point.feature == TriangleFeature::face && corners_of(mesh, point.triangle, walked) &&
           !triangle_is_degenerate(walked.a, walked.b, walked.c)) {
         direction = triangle_normal(walked.a, walked.b, walked.c);
@@ -311,7 +310,7 @@ core::Status GodObjectProxy::advance(const Vec3& tool_m, const Vec3& tool_veloci
     set_free(tool_m);
     return core::Status::ok();
   }
-  Corners corners{};
+  TriangleCorners corners{};
   Vec3 face_normal = corners_of(mesh, start.triangle, corners)
                          ? triangle_normal(corners.a, corners.b, corners.c)
                          : Vec3::Zero();

@@ -17,9 +17,7 @@ using detail::face_normal;
 using detail::triangle_vertices;
 using detail::vertex_position;
 
-// Below this distance (m), or a few ulp of the coordinates, the direction (q − p)/|q − p| is
-// rounding noise: the segment is taken as crossing the mid-surface.
-constexpr float kMinDirectionDistanceM = 1e-9F;
+using detail::kMinDirectionDistanceM;
 constexpr float kDirectionUlps = 16.0F;
 // Distances within this many ulp of the coordinates are equal when choosing the closest triangle.
 constexpr float kTieUlps = 4.0F;

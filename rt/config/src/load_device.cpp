@@ -38,6 +38,7 @@ hal::JointScale joint_scale(const JointConfig& joint) noexcept {
 namespace {
 
 using detail::ErrorSink;
+using detail::kNanosecondsPerMicrosecond;
 using detail::IntRange;
 using detail::RealRange;
 using detail::TableReader;
@@ -48,7 +49,6 @@ constexpr std::string_view kBackendNote =
 
 constexpr IntRange kPlantSubstepRangeUs{1, 1000};
 constexpr std::int64_t kDefaultPlantSubstepUs = 100;
-constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
 
 constexpr IntRange kBitRange{-1, 31};
 constexpr int kNotWired = -1;

@@ -35,12 +35,12 @@ std::string_view to_string(ObjectKind kind) noexcept {
 namespace {
 
 using detail::ErrorSink;
+using detail::kNanosecondsPerMicrosecond;
 using detail::IntRange;
 using detail::RealRange;
 using detail::StringItem;
 using detail::TableReader;
 
-constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
 constexpr std::int64_t kBytesPerKib = 1024;
 
 constexpr IntRange kPeriodRangeUs{50, 100000};

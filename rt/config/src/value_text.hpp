@@ -3,12 +3,15 @@
 // values the same way ("1000.0" for a float, "\"fast\"" for a string, "nan" for NaN).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <string_view>
 
 #include <toml++/toml.h>
 
 namespace trainer::config::detail {
+
+inline constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
 
 // A number as a bound or a computed quantity: integral values without a fraction ("100000",
 // not "1e+05"), others in the shortest form that reads back exactly.

@@ -1,6 +1,8 @@
 // apply_rt_settings and the kernel/stack helpers declared in rt_settings.hpp. Linux/glibc.
 #include "trainer/loop/rt_settings.hpp"
 
+#include "error_text.hpp"
+
 #include <alloca.h>
 #include <fcntl.h>
 #include <pthread.h>
@@ -23,11 +25,7 @@ namespace {
 // signal delivery, library calls), so prefaulting never reaches the guard page.
 constexpr std::size_t kStackMarginBytes = std::size_t{64} * 1024;
 
-std::string error_text(int error_number) {
-  char buffer[256];
-  // GNU strerror_r: returns a pointer to the message (maybe not into buffer); thread-safe.
-  return strerror_r(error_number, buffer, sizeof buffer);
-}
+using detail::error_text;
 
 std::string policy_name(int policy) {
   switch (policy) {

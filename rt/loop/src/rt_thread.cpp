@@ -2,6 +2,8 @@
 // (setup path) and freed by the new thread once it has run.
 #include "trainer/loop/rt_thread.hpp"
 
+#include "error_text.hpp"
+
 #include <unistd.h>
 
 #include <climits>
@@ -14,10 +16,7 @@ namespace trainer::loop {
 
 namespace {
 
-std::string error_text(int error_number) {
-  char buffer[256];
-  return strerror_r(error_number, buffer, sizeof buffer);  // GNU variant: thread-safe
-}
+using detail::error_text;
 
 void* run_body(void* argument) noexcept {
   const std::unique_ptr<std::function<void()>> body(static_cast<std::function<void()>*>(argument));

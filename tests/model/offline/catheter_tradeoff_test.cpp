@@ -51,7 +51,7 @@ std::vector<CatheterScenario> short_scenarios(double length_m) {
   return scenarios;
 }
 
-CycleCostOptions quick_cost() {
+CycleCostOptions catheter_quick_cost() {
 #if defined(TRAINER_SANITIZER_BUILD)
   return {10, 2, 20};
 #else
@@ -144,7 +144,7 @@ TEST(CatheterTrade, ErrorsFallWithTheParticleCountCostsGrowAndTheBudgetRefuses) 
   ASSERT_TRUE(created) << created.error().message;
   const CatheterTradeStudy& study = **created;
   const auto measure = [&](std::uint32_t n, bool beyond) {
-    auto point = study.measure({n}, quick_cost(), beyond);
+    auto point = study.measure({n}, catheter_quick_cost(), beyond);
     EXPECT_TRUE(point) << point.error().message;
     return point ? std::move(point).value() : CatheterTradePoint{};
   };
@@ -183,7 +183,7 @@ TEST(CatheterTrade, ErrorsFallWithTheParticleCountCostsGrowAndTheBudgetRefuses) 
     EXPECT_GT(point->cost.haptic_median_ns, 0.0);
     EXPECT_LE(point->cost.haptic_median_ns, point->cost.median_ns);
     EXPECT_LE(point->cost.repetition_median_min_ns, point->cost.repetition_median_max_ns);
-    EXPECT_EQ(point->cost.repetitions, quick_cost().repetitions);
+    EXPECT_EQ(point->cost.repetitions, catheter_quick_cost().repetitions);
     EXPECT_GT(point->state_bytes, 0U);
   }
   EXPECT_GT(fine->cost.haptic_median_ns, coarse->cost.haptic_median_ns);
@@ -271,7 +271,7 @@ TEST(CatheterTrade, SetupErrorsNameTheProblem) {
   auto study = CatheterTradeStudy::create(plain, one);
   ASSERT_TRUE(study) << study.error().message;
   EXPECT_TRUE((*study)->reference_check().empty());
-  auto too_few = (*study)->measure({2}, quick_cost());
+  auto too_few = (*study)->measure({2}, catheter_quick_cost());
   ASSERT_FALSE(too_few);
   EXPECT_NE(too_few.error().message.find("particle_count"), std::string::npos);
   auto bad_cost = (*study)->measure({6}, CycleCostOptions{0, 0, 10});

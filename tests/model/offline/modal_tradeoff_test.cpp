@@ -40,7 +40,7 @@ ModalBuildSpec small_tube() {
   return spec;
 }
 
-CycleCostOptions quick_cost() {
+CycleCostOptions modal_quick_cost() {
   CycleCostOptions options;
   options.warmup_cycles = 50;
   options.repetitions = 2;
@@ -95,7 +95,7 @@ TEST(DuctTradeStudy, ErrorsFollowTheKnobs) {
     config.modes = modes;
     config.static_correction = correction;
     config.time_step_s = step_s;
-    auto point = (*study)->measure(config, quick_cost());
+    auto point = (*study)->measure(config, modal_quick_cost());
     if (!point) {
       ADD_FAILURE() << point.error().message;
       return ModalTradePoint{};
@@ -109,7 +109,7 @@ TEST(DuctTradeStudy, ErrorsFollowTheKnobs) {
   ModalTradeConfig double_config;
   double_config.modes = 10;
   double_config.precision = RuntimePrecision::float64;
-  auto in_double = (*study)->measure(double_config, quick_cost());
+  auto in_double = (*study)->measure(double_config, modal_quick_cost());
   ASSERT_TRUE(in_double.has_value()) << in_double.error().message;
   // Same build, same algorithm: float32 storage changes the force by rounding only.
   EXPECT_NEAR(in_double->worst_error, corrected.worst_error, 1e-3 * corrected.worst_error);
@@ -135,7 +135,7 @@ TEST(DuctTradeStudy, ErrorsFollowTheKnobs) {
   // A step that is not a multiple of the reference's is refused.
   ModalTradeConfig odd;
   odd.time_step_s = 3.3e-4;
-  EXPECT_FALSE((*study)->measure(odd, quick_cost()).has_value());
+  EXPECT_FALSE((*study)->measure(odd, modal_quick_cost()).has_value());
 }
 
 TEST(DuctTradeStudy, BudgetPicksTheCheapestThatMeetsItAndRecordsIt) {
@@ -151,7 +151,7 @@ TEST(DuctTradeStudy, BudgetPicksTheCheapestThatMeetsItAndRecordsIt) {
     }
   }
   const double budget = 0.15;
-  auto choice = choose_for_budget(**study, budget, candidates, quick_cost());
+  auto choice = choose_for_budget(**study, budget, candidates, modal_quick_cost());
   ASSERT_TRUE(choice.has_value()) << choice.error().message;
   EXPECT_LE(choice->chosen.tuning_error, budget);
   EXPECT_LE(choice->chosen.validation_error, budget);

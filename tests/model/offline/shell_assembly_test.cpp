@@ -18,15 +18,13 @@
 namespace trainer::model::offline {
 namespace {
 
+using test::element_test_name;
 using test::test_material;
 
 const std::vector<int> kAllDofs{kUx, kUy, kUz, kRx, kRy, kRz};
 
 class AssemblyBothBendings : public ::testing::TestWithParam<BendingElement> {};
 
-std::string element_test_name(const ::testing::TestParamInfo<BendingElement>& element) {
-  return element.param == BendingElement::dkt ? "Dkt" : "Rao";
-}
 
 INSTANTIATE_TEST_SUITE_P(Bending, AssemblyBothBendings,
                          ::testing::Values(BendingElement::dkt, BendingElement::rao),

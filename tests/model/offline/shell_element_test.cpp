@@ -15,6 +15,7 @@
 namespace trainer::model::offline {
 namespace {
 
+using test::element_test_name;
 using test::dense_stiffness;
 using test::random_rotation;
 using test::rigid_motion;
@@ -23,9 +24,6 @@ using test::test_material;
 
 class ShellElementBothBendings : public ::testing::TestWithParam<BendingElement> {};
 
-std::string element_test_name(const ::testing::TestParamInfo<BendingElement>& element) {
-  return element.param == BendingElement::dkt ? "Dkt" : "Rao";
-}
 
 INSTANTIATE_TEST_SUITE_P(Bending, ShellElementBothBendings,
                          ::testing::Values(BendingElement::dkt, BendingElement::rao),

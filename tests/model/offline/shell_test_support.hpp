@@ -3,16 +3,24 @@
 // assembly's elimination of fixed dofs does not do), rigid-body vectors and random frames.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 
 #include <random>
+#include <string>
 #include <vector>
 
 #include "trainer/model_offline/shell_element.hpp"
 #include "trainer/model_offline/shell_model.hpp"
 
 namespace trainer::model::offline::test {
+
+// The parameterised tests' names: "Dkt" or "Rao".
+inline std::string element_test_name(const ::testing::TestParamInfo<BendingElement>& element) {
+  return element.param == BendingElement::dkt ? "Dkt" : "Rao";
+}
 
 // Dense 6n × 6n global stiffness from shell_element_stiffness() (fails the test on error).
 inline Eigen::MatrixXd dense_stiffness(const ShellMesh& mesh, const ShellMaterial& material,

@@ -45,7 +45,7 @@ std::vector<TensorProbeScenario> block_scenarios(const TetMesh& mesh) {
   return std::move(scenarios).value();
 }
 
-CycleCostOptions quick_cost() {
+CycleCostOptions tensor_quick_cost() {
 #if defined(TRAINER_SANITIZER_BUILD)
   return {20, 2, 50};
 #else
@@ -113,9 +113,9 @@ TEST_F(TensorTradeTest, ContactSetsPushAndDeeperPressesTakeMoreForce) {
 
 TEST_F(TensorTradeTest, ErrorFallsToFloatRoundingOnceTheCapHoldsTheContactSet) {
   const auto largest = static_cast<std::uint32_t>(study_->largest_contact_set());
-  auto one = study_->measure({1}, quick_cost());
-  auto three = study_->measure({3}, quick_cost());
-  auto all = study_->measure({largest}, quick_cost());
+  auto one = study_->measure({1}, tensor_quick_cost());
+  auto three = study_->measure({3}, tensor_quick_cost());
+  auto all = study_->measure({largest}, tensor_quick_cost());
   ASSERT_TRUE(one) << one.error().message;
   ASSERT_TRUE(three) << three.error().message;
   ASSERT_TRUE(all) << all.error().message;
@@ -145,7 +145,7 @@ TEST_F(TensorTradeTest, ErrorFallsToFloatRoundingOnceTheCapHoldsTheContactSet) {
     EXPECT_LE(point->cost.repetition_median_min_ns, point->cost.repetition_median_max_ns);
   }
   EXPECT_LT(one->state_bytes, all->state_bytes);
-  auto sixteen = study_->measure({16}, quick_cost());
+  auto sixteen = study_->measure({16}, tensor_quick_cost());
   ASSERT_TRUE(sixteen) << sixteen.error().message;
   EXPECT_GT(sixteen->cost.haptic_median_ns, 4.0 * one->cost.haptic_median_ns);
   EXPECT_GT(sixteen->cost.median_ns, one->cost.median_ns);
@@ -210,10 +210,10 @@ TEST_F(TensorTradeTest, QuasiNonLinearForceMapFollowsTheRuntimeRule) {
   }
   EXPECT_GE(compared, 7);  // of 11 presses
   auto all = (*mapped)->measure({static_cast<std::uint32_t>((*mapped)->largest_contact_set())},
-                                quick_cost());
+                                tensor_quick_cost());
   ASSERT_TRUE(all) << all.error().message;
   EXPECT_LT(all->worst_error, 1e-5);
-  auto one = (*mapped)->measure({1}, quick_cost());
+  auto one = (*mapped)->measure({1}, tensor_quick_cost());
   ASSERT_TRUE(one) << one.error().message;
   EXPECT_GT(one->worst_error, 0.05);
 }
@@ -246,10 +246,10 @@ TEST(TensorTrade, SetupErrorsNameTheProblem) {
 
   auto study = TensorTradeStudy::create(spec, one);
   ASSERT_TRUE(study) << study.error().message;
-  auto zero = (*study)->measure({0}, quick_cost());
+  auto zero = (*study)->measure({0}, tensor_quick_cost());
   ASSERT_FALSE(zero);
   EXPECT_NE(zero.error().message.find("max_contacts"), std::string::npos) << zero.error().message;
-  auto too_many = (*study)->measure({65}, quick_cost());
+  auto too_many = (*study)->measure({65}, tensor_quick_cost());
   ASSERT_FALSE(too_many);
   auto bad_cost = (*study)->measure({2}, CycleCostOptions{-1, 1, 1});
   ASSERT_FALSE(bad_cost);

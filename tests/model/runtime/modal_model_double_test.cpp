@@ -26,11 +26,6 @@ namespace {
 constexpr double kTimeStepS = 1e-3;
 const Eigen::Vector3d kZero = Eigen::Vector3d::Zero();
 
-core::Arena make_arena() {
-  auto arena = core::Arena::create(1 << 20);
-  EXPECT_TRUE(arena.has_value());
-  return std::move(arena).value();
-}
 
 template <typename Scalar>
 BasicModalModel<Scalar> make_model(const SyntheticModalModel<Scalar>& synthetic, core::Arena& arena,

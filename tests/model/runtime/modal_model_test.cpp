@@ -23,11 +23,6 @@ namespace {
 
 using SyntheticModel = SyntheticModalModel<float>;
 
-core::Arena make_arena() {
-  auto arena = core::Arena::create(1 << 20);
-  EXPECT_TRUE(arena.has_value());
-  return std::move(arena).value();
-}
 
 ModalModel make_model(const SyntheticModel& synthetic, core::Arena& arena, ModalSettings settings) {
   auto model = ModalModel::create(synthetic.data(), arena, settings);

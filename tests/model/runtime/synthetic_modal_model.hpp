@@ -11,11 +11,22 @@
 #include <utility>
 #include <vector>
 
+#include <gtest/gtest.h>
+
 #include <Eigen/Core>
+
+#include "trainer/core/arena.hpp"
 
 #include "trainer/model/modal_model.hpp"
 
 namespace trainer::model {
+
+// A 1 MiB arena for one test's models.
+inline core::Arena make_arena() {
+  auto arena = core::Arena::create(1 << 20);
+  EXPECT_TRUE(arena.has_value());
+  return std::move(arena).value();
+}
 
 // Owns the arrays a BasicModalModelData views (as a loaded model image would).
 template <typename Scalar>

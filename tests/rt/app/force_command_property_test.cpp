@@ -63,14 +63,13 @@ constexpr std::uint64_t kDefaultCases = 200'000;  // ASan+UBSan: memory and UB, 
 #else
 constexpr std::uint64_t kDefaultCases = 1'000'000;
 #endif
-constexpr std::uint64_t kDefaultSeed = 0x5EED'F0CE'0006ULL;
+constexpr std::uint64_t kForceCommandSeed = 0x5EED'F0CE'0006ULL;
 constexpr std::size_t kInstruments = 2;
 // HapticApp's per-instrument capacity of shaft/jaw forces (walls and catheters).
 constexpr std::size_t kMaxPointForces = 2 * model::ForcepsCatheterContact::kMaxToolForces +
                                         4 * model::SegmentSurfaceContact::kMaxSegments;
 constexpr double kPeriodS = 1e-3;
 
-const std::filesystem::path kRepo{TRAINER_SOURCE_DIR};
 
 // One instrument of the device file, as HapticApp::create builds it, with the limits the
 // oracles use (double, straight from the configuration).
@@ -193,7 +192,7 @@ Vec3 random_force(property::Random& random, double felt_n, double hostile_probab
 class ForceCommandProperty : public ::testing::Test {
  protected:
   void SetUp() override {
-    auto scene = config::load_scene(kRepo / "config/scenes/wall.toml");
+    auto scene = config::load_scene(property::kRepo / "config/scenes/wall.toml");
     ASSERT_TRUE(scene) << scene.error().message;
     ASSERT_GE(scene->device.instruments.size(), kInstruments);
     for (std::size_t i = 0; i < kInstruments; ++i) {
@@ -228,7 +227,7 @@ struct Coverage {
 };
 
 TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
-  const std::uint64_t seed = property::seed_for("ForceCommandProperty", kDefaultSeed);
+  const std::uint64_t seed = property::seed_for("ForceCommandProperty", kForceCommandSeed);
   const std::uint64_t case_budget =
       property::env_u64("TRAINER_PROPERTY_CASES").value_or(kDefaultCases);
   const std::optional<std::uint64_t> only_episode = property::env_u64("TRAINER_PROPERTY_EPISODE");

@@ -88,7 +88,6 @@ namespace {
 using Vec3 = Eigen::Vector3f;
 using kinematics::kJointCount;
 
-const std::filesystem::path kRepo{TRAINER_SOURCE_DIR};
 
 // Sanitizer builds run a tenth of the cycles (the cbd cycle is ~20x slower under ASan) and
 // start the random trainee at once instead of after the scene's own 11 s script, so the few
@@ -104,7 +103,7 @@ constexpr std::uint64_t kCbdCycles = 30'000;
 constexpr bool kSceneScriptFirst = true;
 constexpr bool kSanitizerBuild = false;
 #endif
-constexpr std::uint64_t kDefaultSeed = 0xCB0D'5EED'0006ULL;
+constexpr std::uint64_t kCycleSeed = 0xCB0D'5EED'0006ULL;
 
 // The encoders as the HAL gives them, then drifted, glitched or failed as the test asks.
 class HostileEncoders final : public hal::EncoderInterface {
@@ -299,7 +298,7 @@ std::filesystem::path build_duct_image() {
     std::fprintf(stderr, "duct image: %s\n", message.c_str());
     return std::filesystem::path{};
   };
-  auto scene = config::load_scene(kRepo / "config/scenes/cbd.toml");
+  auto scene = config::load_scene(property::kRepo / "config/scenes/cbd.toml");
   if (!scene) return complain(scene.error().message);
   for (const config::SceneModelConfig& entry : scene->models) {
     if (entry.definition.kind != config::ModelKind::modal_shell) continue;
@@ -966,11 +965,11 @@ void report(const char* name, const ScenePropertyRun& run) {
 }
 
 TEST(HapticAppProperty, WallSceneCommandsStayFiniteWithinLimitsAndNoFaultIsLost) {
-  const std::uint64_t seed = property::seed_for("HapticAppProperty wall", kDefaultSeed);
+  const std::uint64_t seed = property::seed_for("HapticAppProperty wall", kCycleSeed);
   const std::uint64_t cycles = property::env_u64("TRAINER_PROPERTY_CYCLES").value_or(kWallCycles);
   // Drifts take the one instrument beyond its range, where its levers reach the effort limits.
   ScenePropertyRun run(seed, "wall", 1e-3);
-  ASSERT_NO_FATAL_FAILURE(run.setup(kRepo / "config/scenes/wall.toml", {}, cycles));
+  ASSERT_NO_FATAL_FAILURE(run.setup(property::kRepo / "config/scenes/wall.toml", {}, cycles));
   run.run(cycles);
   report("HapticAppProperty wall", run);
   ASSERT_TRUE(run.failure().empty()) << run.failure();
@@ -989,13 +988,13 @@ TEST(HapticAppProperty, WallSceneCommandsStayFiniteWithinLimitsAndNoFaultIsLost)
 }
 
 TEST(HapticAppProperty, CbdSceneCommandsStayFiniteWithinLimitsAndNoFaultIsLost) {
-  const std::uint64_t seed = property::seed_for("HapticAppProperty cbd", kDefaultSeed ^ 0xCBDU);
+  const std::uint64_t seed = property::seed_for("HapticAppProperty cbd", kCycleSeed ^ 0xCBDU);
   const std::uint64_t cycles = property::env_u64("TRAINER_PROPERTY_CYCLES").value_or(kCbdCycles);
   const std::filesystem::path& image = duct_image();
   ASSERT_FALSE(image.empty()) << "building the duct image failed";
   // Fewer drifts: a drifted joint takes a tool off the small duct.
   ScenePropertyRun run(seed, "cbd", 2e-4);
-  ASSERT_NO_FATAL_FAILURE(run.setup(kRepo / "config/scenes/cbd.toml", image, cycles));
+  ASSERT_NO_FATAL_FAILURE(run.setup(property::kRepo / "config/scenes/cbd.toml", image, cycles));
   run.run(cycles);
   report("HapticAppProperty cbd", run);
   ASSERT_TRUE(run.failure().empty()) << run.failure();
@@ -1012,7 +1011,7 @@ TEST(HapticAppProperty, CbdSceneCommandsStayFiniteWithinLimitsAndNoFaultIsLost) 
 class TwoInstrumentWall : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::ifstream in(kRepo / "config/scenes/wall.toml");
+    std::ifstream in(property::kRepo / "config/scenes/wall.toml");
     std::ostringstream text;
     text << in.rdbuf();
     std::string scene = text.str();
@@ -1021,9 +1020,9 @@ class TwoInstrumentWall : public ::testing::Test {
       ASSERT_NE(at, std::string::npos) << from;
       scene.replace(at, from.size(), to);
     };
-    replace("\"../devices/sim.toml\"", "\"" + (kRepo / "config/devices/sim.toml").string() + "\"");
+    replace("\"../devices/sim.toml\"", "\"" + (property::kRepo / "config/devices/sim.toml").string() + "\"");
     replace("\"../trajectories/wall_press.csv\"",
-            "\"" + (kRepo / "config/trajectories/wall_press.csv").string() + "\"");
+            "\"" + (property::kRepo / "config/trajectories/wall_press.csv").string() + "\"");
     replace("touched_by = [\"left\"]", "touched_by = [\"left\", \"right\"]");
     replace("[[object]]",
             "[[instrument]]\nname = \"right\"\ndevice_instrument = \"right\"\n\n[[object]]");

@@ -14,6 +14,7 @@
 // numbers with any standard library, unlike std::uniform_*_distribution.
 #pragma once
 
+#include <filesystem>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -27,6 +28,8 @@
 #include <Eigen/Core>
 
 namespace trainer::app::property {
+
+inline const std::filesystem::path kRepo{TRAINER_SOURCE_DIR};
 
 inline std::uint64_t splitmix64(std::uint64_t& state) noexcept {
   std::uint64_t z = (state += 0x9E3779B97F4A7C15ULL);

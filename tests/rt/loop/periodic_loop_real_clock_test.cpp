@@ -15,7 +15,7 @@ namespace trainer::loop {
 namespace {
 
 constexpr std::size_t kCycles = 200;
-constexpr std::int64_t kPeriodNs = 1'000'000;
+constexpr std::int64_t kRealClockPeriodNs = 1'000'000;
 
 class RecordingTask final : public CycleTask {
  public:
@@ -38,7 +38,7 @@ class RecordingTask final : public CycleTask {
 TEST(PeriodicLoopRealClock, TwoHundredCyclesAtOneMillisecondComplete) {
   core::MonotonicClock clock;
   RecordingTask task;
-  PeriodicLoop loop(clock, LoopSettings{kPeriodNs, 0, kCycles});  // no fault: noise is allowed
+  PeriodicLoop loop(clock, LoopSettings{kRealClockPeriodNs, 0, kCycles});  // no fault: noise is allowed
   const std::atomic<bool> stop{false};
   const std::int64_t start_ns = clock.now_ns();
   loop.run(task, stop);
@@ -64,13 +64,13 @@ TEST(PeriodicLoopRealClock, TwoHundredCyclesAtOneMillisecondComplete) {
     if (i == 0) continue;
     const std::int64_t step_ns = timing.deadline_ns - task.timing(i - 1).deadline_ns;
     ASSERT_GT(step_ns, 0);              // monotonic
-    EXPECT_EQ(step_ns % kPeriodNs, 0);  // on the grid
-    grid_points_passed_over += static_cast<std::uint64_t>(step_ns / kPeriodNs - 1);
+    EXPECT_EQ(step_ns % kRealClockPeriodNs, 0);  // on the grid
+    grid_points_passed_over += static_cast<std::uint64_t>(step_ns / kRealClockPeriodNs - 1);
   }
   EXPECT_EQ(grid_points_passed_over, stats.skipped_periods);
   // A run of kCycles periods cannot finish before the last deadline.
   EXPECT_GE(end_ns, task.timing(kCycles - 1).deadline_ns);
-  EXPECT_GE(end_ns - start_ns, static_cast<std::int64_t>(kCycles) * kPeriodNs);
+  EXPECT_GE(end_ns - start_ns, static_cast<std::int64_t>(kCycles) * kRealClockPeriodNs);
 }
 
 }  // namespace

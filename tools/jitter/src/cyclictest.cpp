@@ -7,8 +7,6 @@ namespace trainer::tools::jitter {
 
 namespace {
 
-constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
-
 std::string_view trim(std::string_view text) {
   while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
   while (!text.empty() && (text.back() == ' ' || text.back() == '\t' || text.back() == '\r')) {

@@ -11,12 +11,6 @@ namespace trainer::tools::jitter {
 
 namespace {
 
-constexpr double kNanosecondsPerMicrosecond = 1000.0;
-
-double to_us(std::int64_t ns) {
-  return static_cast<double>(ns) / kNanosecondsPerMicrosecond;
-}
-
 void append_density(std::string& out, const LatencyDistribution& distribution) {
   char line[96];
   for (const LatencyBin& bin : distribution.bins()) {

@@ -20,7 +20,6 @@ namespace trainer::tools::jitter {
 
 namespace {
 
-constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
 constexpr std::int64_t kDefaultHistogramLimitUs = 20000;
 constexpr std::int64_t kSignalPollNs = 50'000'000;
 // cyclictest's measurement thread appears within milliseconds; allow for a loaded machine.

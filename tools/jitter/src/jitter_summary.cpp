@@ -8,8 +8,6 @@ namespace trainer::tools::jitter {
 
 namespace {
 
-constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
-
 // Microseconds to 3 decimals (ns resolution) in the JSON, so no float noise is printed.
 double rounded_us(double value_us) {
   return std::round(value_us * 1000.0) / 1000.0;

@@ -8,12 +8,6 @@ namespace trainer::tools::jitter {
 
 namespace {
 
-constexpr double kNanosecondsPerMicrosecond = 1000.0;
-
-double to_us(std::int64_t ns) {
-  return static_cast<double>(ns) / kNanosecondsPerMicrosecond;
-}
-
 std::string describe(std::size_t index, const LatencyBin& bin) {
   return "bin " + std::to_string(index) + " [" + std::to_string(bin.lower_ns) + ", " +
          std::to_string(bin.upper_ns) + ") ns";

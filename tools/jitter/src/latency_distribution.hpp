@@ -18,6 +18,9 @@
 
 namespace trainer::tools::jitter {
 
+inline constexpr std::int64_t kNanosecondsPerMicrosecond = 1000;
+inline double to_us(std::int64_t ns) { return static_cast<double>(ns) / 1000.0; }
+
 struct LatencyBin {
   std::int64_t lower_ns = 0;  // inclusive
   std::int64_t upper_ns = 0;  // exclusive, > lower_ns

@@ -1,5 +1,7 @@
 #include "build_command.hpp"
 
+#include "command_line_values.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -29,11 +31,6 @@ namespace {
 
 namespace offline = model::offline;
 
-template <class T>
-T value_or_throw(core::Expected<T> expected) {
-  if (!expected) throw std::runtime_error(expected.error().message);
-  return std::move(expected).value();
-}
 
 std::string fixed(double value, int decimals) {
   char buffer[64];

@@ -3,14 +3,25 @@
 // whose message names the option, the text and what was expected.
 #pragma once
 
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "trainer/core/expected.hpp"
+
 #include "trainer/model_offline/shell_model.hpp"
 
 namespace trainer::tools::modelc {
+
+// A setup result or an exception carrying its message (tools may throw; main reports it).
+template <class T>
+T value_or_throw(core::Expected<T> result) {
+  if (!result) throw std::runtime_error(result.error().message);
+  return std::move(result).value();
+}
 
 // --fix GROUP=DOFS, DOFS a comma list of x, y, z, rx, ry, rz (ux, uy, uz accepted) or "all".
 model::offline::DofFix parse_fix(const std::string& text);

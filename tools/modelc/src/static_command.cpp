@@ -28,11 +28,6 @@ namespace {
 namespace offline = model::offline;
 using Clock = std::chrono::steady_clock;
 
-template <class T>
-T value_or_throw(core::Expected<T> result) {
-  if (!result) throw std::runtime_error(result.error().message);
-  return std::move(result).value();
-}
 
 void throw_if_error(const core::Expected<void>& result) {
   if (!result) throw std::runtime_error(result.error().message);
