@@ -1,3 +1,5 @@
+// catheter_model_data(): a loaded catheter image's record and rest positions as the runtime
+// catheter's data (catheter_image.hpp).
 #include "trainer/model/catheter_image.hpp"
 
 #include <cstring>
