@@ -20,19 +20,22 @@ core::Expected<ImageWriter> make_catheter_writer(const CatheterImageInputs& inpu
   auto record = make_catheter_record(inputs);
   if (!record) return std::move(record).error();
   std::vector<Eigen::Vector3f> rest(record->particle_count);
-  place_catheter_rest(inputs.start_m, Eigen::Vector3f(record->rest_direction[0], record->rest_direction[1],
-                                                      record->rest_direction[2]),
+  place_catheter_rest(inputs.start_m,
+                      Eigen::Vector3f(record->rest_direction[0], record->rest_direction[1],
+                                      record->rest_direction[2]),
                       record->rest_length_m, rest);
   std::vector<float> rest_positions;
   rest_positions.reserve(3 * rest.size());
-  for (const Eigen::Vector3f& position : rest) rest_positions.insert(rest_positions.end(), position.begin(), position.end());
+  for (const Eigen::Vector3f& position : rest)
+    rest_positions.insert(rest_positions.end(), position.begin(), position.end());
 
   ImageMetadataV1 metadata = make_metadata();
   // The catheter's "source" is its parameter record: equal records, equal hash.
   metadata.source_mesh_hash = XXH64(&record.value(), sizeof(CatheterParametersV1), 0);
   metadata.element_type = static_cast<std::uint32_t>(FiniteElementType::none);
   metadata.node_count = record->particle_count;
-  if (auto version = set_tool_version(metadata, "modelc 0.1.0"); !version) return std::move(version).error();
+  if (auto version = set_tool_version(metadata, "modelc 0.1.0"); !version)
+    return std::move(version).error();
   ImageWriter writer(ModelKind::catheter);
   writer.set_metadata(metadata);
   std::vector<std::uint8_t> record_bytes(sizeof(CatheterParametersV1));
@@ -42,8 +45,8 @@ core::Expected<ImageWriter> make_catheter_writer(const CatheterImageInputs& inpu
       !r) {
     return std::move(r).error();
   }
-  if (auto r = writer.add_f32(SectionId::catheter_rest_positions, std::span<const float>(rest_positions),
-                              record->particle_count, 3);
+  if (auto r = writer.add_f32(SectionId::catheter_rest_positions,
+                              std::span<const float>(rest_positions), record->particle_count, 3);
       !r) {
     return std::move(r).error();
   }
@@ -91,7 +94,8 @@ core::Expected<std::vector<std::byte>> serialize_catheter_image(const CatheterIm
   return writer.value().serialize();
 }
 
-core::Expected<void> write_catheter_image(const std::filesystem::path& path, const CatheterImageInputs& inputs) {
+core::Expected<void> write_catheter_image(const std::filesystem::path& path,
+                                          const CatheterImageInputs& inputs) {
   auto writer = make_catheter_writer(inputs);
   if (!writer) return std::move(writer).error();
   return writer.value().write(path);

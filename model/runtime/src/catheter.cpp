@@ -8,26 +8,26 @@
 #include <string>
 #include <utility>
 
+#include "catheter_refusal.hpp"
+
 namespace trainer::model {
-namespace {
 
-bool positive_finite(float value) noexcept { return std::isfinite(value) && value > 0.0F; }
-
-core::Error refuse(const std::string& what) { return core::make_error("catheter: " + what); }
-
-}  // namespace
+using detail::catheter_positive_finite;
+using detail::catheter_refusal;
 
 core::Expected<Catheter> Catheter::create(const CatheterParams& params, const CatheterSetup& setup,
                                           core::Arena& arena) {
   auto chain = derive_catheter_chain(params);
   if (!chain) return std::move(chain).error();
-  if (!setup.start_position_m.allFinite()) return refuse("start_position_m is not finite");
+  if (!setup.start_position_m.allFinite())
+    return catheter_refusal("start_position_m is not finite");
   auto direction = catheter_rest_direction(setup.direction);
   if (!direction) return std::move(direction).error();
-  auto catheter = allocate(params, chain.value(), direction.value(), setup.haptic_period_s, setup.max_substeps,
-                           setup.max_contact_planes, arena);
+  auto catheter = allocate(params, chain.value(), direction.value(), setup.haptic_period_s,
+                           setup.max_substeps, setup.max_contact_planes, arena);
   if (!catheter) return catheter;
-  place_catheter_rest(setup.start_position_m, direction.value(), chain->rest_length_m, catheter->rest_positions_);
+  place_catheter_rest(setup.start_position_m, direction.value(), chain->rest_length_m,
+                      catheter->rest_positions_);
   catheter->reset();
   return catheter;
 }
@@ -39,31 +39,35 @@ core::Expected<Catheter> Catheter::create(const CatheterModelData& data, float h
   const CatheterChain& chain = data.chain;
   if (chain.particle_count < 3 || chain.particle_count > kMaxParticles ||
       data.rest_positions_m.size() != 3 * std::size_t{chain.particle_count}) {
-    return refuse("image data has " + std::to_string(chain.particle_count) + " particles and " +
-                  std::to_string(data.rest_positions_m.size()) + " rest coordinates: expected 3.." +
-                  std::to_string(kMaxParticles) + " particles, 3 coordinates each");
+    return catheter_refusal("image data has " + std::to_string(chain.particle_count) +
+                            " particles and " + std::to_string(data.rest_positions_m.size()) +
+                            " rest coordinates: expected 3.." + std::to_string(kMaxParticles) +
+                            " particles, 3 coordinates each");
   }
-  if (!positive_finite(chain.particle_mass_kg) || !positive_finite(chain.rest_length_m) ||
-      !positive_finite(chain.stable_substep_s) || !std::isfinite(chain.axial_n_per_m) ||
+  if (!catheter_positive_finite(chain.particle_mass_kg) ||
+      !catheter_positive_finite(chain.rest_length_m) ||
+      !catheter_positive_finite(chain.stable_substep_s) || !std::isfinite(chain.axial_n_per_m) ||
       !std::isfinite(chain.bending_n_m_per_rad) || !(chain.damping_n_s_per_m >= 0.0F)) {
-    return refuse("image data: particle mass, segment and stable substep must be > 0, the spring "
-                  "constants finite and the damping >= 0");
+    return catheter_refusal(
+        "image data: particle mass, segment and stable substep must be > 0, the spring "
+        "constants finite and the damping >= 0");
   }
-  auto catheter = allocate(data.params, chain, data.rest_direction, haptic_period_s, data.max_substeps,
-                           max_contact_planes, arena);
+  auto catheter = allocate(data.params, chain, data.rest_direction, haptic_period_s,
+                           data.max_substeps, max_contact_planes, arena);
   if (!catheter) return catheter;
   for (std::size_t i = 0; i < chain.particle_count; ++i) {
-    catheter->rest_positions_[i] = Vec3(data.rest_positions_m[3 * i], data.rest_positions_m[3 * i + 1],
-                                        data.rest_positions_m[3 * i + 2]);
+    catheter->rest_positions_[i] =
+        Vec3(data.rest_positions_m[3 * i], data.rest_positions_m[3 * i + 1],
+             data.rest_positions_m[3 * i + 2]);
   }
   catheter->reset();
   return catheter;
 }
 
-core::Expected<Catheter> Catheter::allocate(const CatheterParams& params, const CatheterChain& chain,
-                                            const Vec3& rest_direction, float haptic_period_s,
-                                            std::uint32_t max_substeps, std::uint32_t max_contact_planes,
-                                            core::Arena& arena) {
+core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
+                                            const CatheterChain& chain, const Vec3& rest_direction,
+                                            float haptic_period_s, std::uint32_t max_substeps,
+                                            std::uint32_t max_contact_planes, core::Arena& arena) {
   auto substeps = catheter_substeps_per_period(params, chain, haptic_period_s, max_substeps);
   if (!substeps) return std::move(substeps).error();
   Catheter catheter;
@@ -106,7 +110,8 @@ core::Expected<Catheter> Catheter::allocate(const CatheterParams& params, const 
     auto planes = arena.allocate_array<ContactPlane>(max_contact_planes, "catheter contact planes");
     if (!planes) return std::move(planes).error();
     catheter.planes_ = planes.value();
-    auto plane_forces = arena.allocate_array<Vec3>(max_contact_planes, "catheter contact plane forces");
+    auto plane_forces =
+        arena.allocate_array<Vec3>(max_contact_planes, "catheter contact plane forces");
     if (!plane_forces) return std::move(plane_forces).error();
     catheter.plane_forces_n_ = plane_forces.value();
   }
@@ -231,7 +236,9 @@ bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
 }
 
 core::Status Catheter::step(float period_s) noexcept {
-  if (!positive_finite(period_s)) return {core::StatusCode::invalid_argument, "catheter: period must be > 0"};
+  if (!catheter_positive_finite(period_s)) {
+    return {core::StatusCode::invalid_argument, "catheter: period must be > 0"};
+  }
   const std::uint64_t substeps =
       substeps_for(static_cast<double>(period_s), static_cast<double>(stable_substep_s_));
   if (substeps > max_substeps_) {

@@ -14,7 +14,9 @@ CatheterModelData catheter_model_data(const ModelImage& image) noexcept {
   }
   CatheterParametersV1 record;
   std::memcpy(&record, bytes.data(), sizeof record);
-  const auto vector = [](const float (&values)[3]) { return Eigen::Vector3f(values[0], values[1], values[2]); };
+  const auto vector = [](const float(&values)[3]) {
+    return Eigen::Vector3f(values[0], values[1], values[2]);
+  };
   data.params.length_m = record.length_m;
   data.params.outer_radius_m = record.radius_m;
   data.params.bending_stiffness_n_m2 = record.bending_stiffness_n_m2;

@@ -38,7 +38,8 @@ Expected<void> field_error(std::string_view label, const char* field, const std:
 Expected<CatheterParametersV1> read_parameters(const ModelImage& image, std::string_view label) {
   for (const SectionId id : {SectionId::catheter_parameters, SectionId::catheter_rest_positions}) {
     if (!image.has(id)) {
-      return image_error(label, "a catheter image needs " + section_label(id) + ", which is missing");
+      return image_error(label,
+                         "a catheter image needs " + section_label(id) + ", which is missing");
     }
   }
   const std::span<const std::uint8_t> bytes = image.u8s(SectionId::catheter_parameters);
@@ -61,8 +62,8 @@ Expected<CatheterParametersV1> read_parameters(const ModelImage& image, std::str
       read_record<CatheterParametersV1>(reinterpret_cast<const std::byte*>(bytes.data()));
   for (std::size_t i = 0; i < sizeof record.reserved; ++i) {
     if (record.reserved[i] != 0) {
-      return image_error(label, std::string(kRecord) + "reserved byte " + std::to_string(i) +
-                                    " is not zero");
+      return image_error(
+          label, std::string(kRecord) + "reserved byte " + std::to_string(i) + " is not zero");
     }
   }
   return record;
@@ -84,14 +85,13 @@ Expected<void> check_counts(const CatheterParametersV1& record, const ImageMetad
   if (metadata.element_type != static_cast<std::uint32_t>(FiniteElementType::none) ||
       metadata.mode_count != 0 || metadata.surface_node_count != 0 ||
       metadata.static_correction != 0) {
-    return image_error(label, "metadata element_type " + std::to_string(metadata.element_type) +
-                                  ", mode_count " + std::to_string(metadata.mode_count) +
-                                  ", surface_node_count " +
-                                  std::to_string(metadata.surface_node_count) +
-                                  ", static_correction " +
-                                  std::to_string(metadata.static_correction) +
-                                  ": a catheter image has no element, modes, surface nodes or "
-                                  "correction (all 0)");
+    return image_error(
+        label, "metadata element_type " + std::to_string(metadata.element_type) + ", mode_count " +
+                   std::to_string(metadata.mode_count) + ", surface_node_count " +
+                   std::to_string(metadata.surface_node_count) + ", static_correction " +
+                   std::to_string(metadata.static_correction) +
+                   ": a catheter image has no element, modes, surface nodes or "
+                   "correction (all 0)");
   }
   if (record.max_substeps < 1 || record.max_substeps > kMaxCatheterSubsteps) {
     return field_error(label, "max_substeps",
@@ -124,7 +124,8 @@ Expected<void> check_values(const CatheterParametersV1& r, std::string_view labe
   };
   for (const NamedFloat& field : positive) {
     if (!std::isfinite(field.value) || !(field.value > 0.0F)) {
-      return field_error(label, field.name, "is " + number(field.value) + ", expected a finite value > 0");
+      return field_error(label, field.name,
+                         "is " + number(field.value) + ", expected a finite value > 0");
     }
   }
   const NamedFloat non_negative[] = {
@@ -134,24 +135,31 @@ Expected<void> check_values(const CatheterParametersV1& r, std::string_view labe
   };
   for (const NamedFloat& field : non_negative) {
     if (!std::isfinite(field.value) || field.value < 0.0F) {
-      return field_error(label, field.name, "is " + number(field.value) + ", expected a finite value >= 0");
+      return field_error(label, field.name,
+                         "is " + number(field.value) + ", expected a finite value >= 0");
     }
   }
   const NamedFloat vectors[] = {
-      {"rest_direction[0]", r.rest_direction[0]},     {"rest_direction[1]", r.rest_direction[1]},
-      {"rest_direction[2]", r.rest_direction[2]},     {"gravity_m_per_s2[0]", r.gravity_m_per_s2[0]},
-      {"gravity_m_per_s2[1]", r.gravity_m_per_s2[1]}, {"gravity_m_per_s2[2]", r.gravity_m_per_s2[2]},
+      {"rest_direction[0]", r.rest_direction[0]},
+      {"rest_direction[1]", r.rest_direction[1]},
+      {"rest_direction[2]", r.rest_direction[2]},
+      {"gravity_m_per_s2[0]", r.gravity_m_per_s2[0]},
+      {"gravity_m_per_s2[1]", r.gravity_m_per_s2[1]},
+      {"gravity_m_per_s2[2]", r.gravity_m_per_s2[2]},
   };
   for (const NamedFloat& field : vectors) {
     if (!std::isfinite(field.value)) {
-      return field_error(label, field.name, "is " + number(field.value) + ", expected a finite value");
+      return field_error(label, field.name,
+                         "is " + number(field.value) + ", expected a finite value");
     }
   }
-  const double norm = std::hypot(static_cast<double>(r.rest_direction[0]), static_cast<double>(r.rest_direction[1]),
-                                 static_cast<double>(r.rest_direction[2]));
+  const double norm =
+      std::hypot(static_cast<double>(r.rest_direction[0]), static_cast<double>(r.rest_direction[1]),
+                 static_cast<double>(r.rest_direction[2]));
   if (std::fabs(norm - 1.0) > kUnitTolerance) {
-    return field_error(label, "rest_direction",
-                       "has length " + number(static_cast<float>(norm)) + ", expected a unit vector (to 1e-5)");
+    return field_error(
+        label, "rest_direction",
+        "has length " + number(static_cast<float>(norm)) + ", expected a unit vector (to 1e-5)");
   }
   return {};
 }
@@ -169,40 +177,45 @@ Expected<void> check_derivation(const CatheterParametersV1& r, std::string_view 
     const char* rule;
   };
   const Relation relations[] = {
-      {"rest_length_m", r.rest_length_m, d(r.length_m) / (count - 1.0), "length_m / (particle_count - 1)"},
+      {"rest_length_m", r.rest_length_m, d(r.length_m) / (count - 1.0),
+       "length_m / (particle_count - 1)"},
       {"particle_mass_kg", r.particle_mass_kg, d(r.linear_density_kg_per_m) * d(r.length_m) / count,
        "linear_density_kg_per_m * length_m / particle_count"},
-      {"axial_stiffness_n_per_m", r.axial_stiffness_n_per_m, d(r.axial_stiffness_n) / d(r.rest_length_m),
-       "axial_stiffness_n / rest_length_m"},
+      {"axial_stiffness_n_per_m", r.axial_stiffness_n_per_m,
+       d(r.axial_stiffness_n) / d(r.rest_length_m), "axial_stiffness_n / rest_length_m"},
       {"bending_stiffness_n_m_per_rad", r.bending_stiffness_n_m_per_rad,
        d(r.bending_stiffness_n_m2) / d(r.rest_length_m), "bending_stiffness_n_m2 / rest_length_m"},
   };
   for (const Relation& relation : relations) {
-    if (!(std::fabs(d(relation.stored) - relation.expected) <= kDerivationTolerance * relation.expected)) {
+    if (!(std::fabs(d(relation.stored) - relation.expected) <=
+          kDerivationTolerance * relation.expected)) {
       // Both printed as floats: the precision the record holds.
       return field_error(label, relation.field,
                          "is " + number(relation.stored) + ", but " + relation.rule + " = " +
-                             number(static_cast<float>(relation.expected)) + " (to a relative 1e-6)");
+                             number(static_cast<float>(relation.expected)) +
+                             " (to a relative 1e-6)");
     }
   }
-  const double bound = catheter_stable_substep_s(d(r.particle_mass_kg), d(r.axial_stiffness_n_per_m),
-                                                 d(r.bending_stiffness_n_m_per_rad), d(r.rest_length_m),
-                                                 d(r.damping_n_s_per_m));
+  const double bound = catheter_stable_substep_s(
+      d(r.particle_mass_kg), d(r.axial_stiffness_n_per_m), d(r.bending_stiffness_n_m_per_rad),
+      d(r.rest_length_m), d(r.damping_n_s_per_m));
   if (!(d(r.stable_substep_s) <= bound * (1.0 + kDerivationTolerance))) {
-    return field_error(label, "stable_substep_s",
-                       "is " + number(r.stable_substep_s) + " s, above the stable step " +
-                           number(static_cast<float>(bound)) +
-                           " s of the record's own mass, stiffnesses, segment and damping: the chain "
-                           "would be integrated unstably");
+    return field_error(
+        label, "stable_substep_s",
+        "is " + number(r.stable_substep_s) + " s, above the stable step " +
+            number(static_cast<float>(bound)) +
+            " s of the record's own mass, stiffnesses, segment and damping: the chain "
+            "would be integrated unstably");
   }
   const float limit = contact_stiffness_limit_n_per_m(r.particle_mass_kg, r.stable_substep_s);
   for (const NamedFloat& field : {NamedFloat{"wall_stiffness_n_per_m", r.wall_stiffness_n_per_m},
                                   NamedFloat{"tool_stiffness_n_per_m", r.tool_stiffness_n_per_m}}) {
     if (field.value > limit) {
-      return field_error(label, field.name,
-                         "is " + number(field.value) + " N/m, above " + number(limit) +
-                             " N/m, the stiffest contact the substep keeps stable (particle_mass_kg / "
-                             "stable_substep_s^2)");
+      return field_error(
+          label, field.name,
+          "is " + number(field.value) + " N/m, above " + number(limit) +
+              " N/m, the stiffest contact the substep keeps stable (particle_mass_kg / "
+              "stable_substep_s^2)");
     }
   }
   return {};
@@ -234,7 +247,8 @@ Expected<void> check_rest_positions(const ModelImage& image, const CatheterParam
     const double tolerance = 1e-4 * l0 + 1e-6 * size;
     if (!(deviation <= tolerance)) {
       return image_error(label, "section 'catheter_rest_positions' segment " + std::to_string(i) +
-                                    " (particles " + std::to_string(i) + " to " + std::to_string(i + 1) +
+                                    " (particles " + std::to_string(i) + " to " +
+                                    std::to_string(i + 1) +
                                     ") is off rest_length_m * rest_direction by " +
                                     number(static_cast<float>(deviation)) + " m (tolerance " +
                                     number(static_cast<float>(tolerance)) +

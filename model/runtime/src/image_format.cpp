@@ -53,7 +53,8 @@ const char* section_name(SectionId id) noexcept {
 
 std::string owners_text(const SectionDescriptor& descriptor) {
   std::string text;
-  for (const ModelKind kind : {ModelKind::modal_shell, ModelKind::tet_tensor, ModelKind::catheter}) {
+  for (const ModelKind kind :
+       {ModelKind::modal_shell, ModelKind::tet_tensor, ModelKind::catheter}) {
     if (!section_belongs_to(descriptor, kind)) continue;
     if (!text.empty()) text.append(" and ");
     text.append(model_kind_name(kind));

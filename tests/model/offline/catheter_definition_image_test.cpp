@@ -62,14 +62,17 @@ TEST_F(CatheterDefinitionImage, ModelcBuildWritesALoadableImageForEachScene) {
     const char* definition;
     std::uint32_t particles;
   };
-  for (const Case& c : {Case{"cbd.toml", "catheter_cbd.toml", 11}, Case{"catheter.toml", "catheter.toml", 21}}) {
+  for (const Case& c :
+       {Case{"cbd.toml", "catheter_cbd.toml", 11}, Case{"catheter.toml", "catheter.toml", 21}}) {
     ASSERT_EQ(run(MODELC_PATH, "build --scene " + (config / "scenes" / c.scene).string() +
                                    " --only catheter --report " + report_path()),
               0)
         << output_;
-    const fs::path image_path = directory_ / "out/models" / fs::path(c.definition).replace_extension(".img");
-    EXPECT_NE(output_.find("model 'catheter': catheter, " + std::to_string(c.particles) + " particles"),
-              std::string::npos)
+    const fs::path image_path =
+        directory_ / "out/models" / fs::path(c.definition).replace_extension(".img");
+    EXPECT_NE(
+        output_.find("model 'catheter': catheter, " + std::to_string(c.particles) + " particles"),
+        std::string::npos)
         << output_;
     EXPECT_NE(output_.find(image_path.string()), std::string::npos) << output_;
 
@@ -92,7 +95,8 @@ TEST_F(CatheterDefinitionImage, ModelcBuildWritesALoadableImageForEachScene) {
     auto chain = derive_catheter_chain(tools::modelc::catheter_inputs_from(*definition).params);
     ASSERT_TRUE(chain) << chain.error().message;
     EXPECT_EQ(std::memcmp(&data.chain, &chain.value(), sizeof data.chain), 0);
-    EXPECT_EQ(entry["stable_substep_s"].get<double>(), static_cast<double>(data.chain.stable_substep_s));
+    EXPECT_EQ(entry["stable_substep_s"].get<double>(),
+              static_cast<double>(data.chain.stable_substep_s));
     EXPECT_EQ(data.hold_start, definition->catheter.hold_start);
   }
 }
@@ -109,11 +113,14 @@ TEST_F(CatheterDefinitionImage, ModelcRefusesADefinitionTheLoaderWouldRefuse) {
   ASSERT_NE(edited.find(from), std::string::npos);
   edited.replace(edited.find(from), from.size(), "wall_stiffness_n_per_m = 1.0e5");
   std::ofstream(definition, std::ios::trunc) << edited;
-  EXPECT_EQ(run(MODELC_PATH, "build --scene " + (config / "scenes/cbd.toml").string() + " --only catheter"), 1)
+  EXPECT_EQ(run(MODELC_PATH,
+                "build --scene " + (config / "scenes/cbd.toml").string() + " --only catheter"),
+            1)
       << output_;
   EXPECT_EQ(output_.rfind("modelc: " + definition.string() + ": ", 0), 0U) << output_;
-  EXPECT_NE(output_.find("catheter_cbd.img: not written: image being written: section 'catheter_parameters' "
-                         "wall_stiffness_n_per_m is 1e+05 N/m, above"),
+  EXPECT_NE(output_.find(
+                "catheter_cbd.img: not written: image being written: section 'catheter_parameters' "
+                "wall_stiffness_n_per_m is 1e+05 N/m, above"),
             std::string::npos)
       << output_;
   EXPECT_FALSE(fs::exists(directory_ / "out/models/catheter_cbd.img"));
@@ -121,7 +128,8 @@ TEST_F(CatheterDefinitionImage, ModelcRefusesADefinitionTheLoaderWouldRefuse) {
 
 // Drives two catheters through the same 1,000 periods and requires every state and output to
 // be bit-identical after every step.
-void expect_bit_identical_runs(Catheter& from_params, Catheter& from_image, const CatheterModelData& data) {
+void expect_bit_identical_runs(Catheter& from_params, Catheter& from_image,
+                               const CatheterModelData& data) {
   const std::uint32_t count = from_params.particle_count();
   const Vec3 direction = data.rest_direction;
   const Vec3 side = direction.unitOrthogonal();  // the planes' normal, towards the chain
@@ -145,28 +153,37 @@ void expect_bit_identical_runs(Catheter& from_params, Catheter& from_image, cons
     for (Catheter* catheter : {&from_params, &from_image}) {
       ASSERT_TRUE(catheter->set_contact_planes(planes).is_ok());
       catheter->clear_forces();
-      for (std::uint32_t p = 0; p < count; ++p) ASSERT_TRUE(catheter->add_force(p, gravity_force).is_ok());
+      for (std::uint32_t p = 0; p < count; ++p)
+        ASSERT_TRUE(catheter->add_force(p, gravity_force).is_ok());
       ASSERT_TRUE(catheter->add_force(count - 1, tip_force).is_ok());
       if (period >= 200 && period < 600) {
         const Vec3 drag = 1e-5F * static_cast<float>(period - 200) * (side + direction);
-        for (const std::uint32_t p : {2U, 3U}) ASSERT_TRUE(catheter->hold(p, catheter->rest_positions_m()[p] + drag).is_ok());
+        for (const std::uint32_t p : {2U, 3U})
+          ASSERT_TRUE(catheter->hold(p, catheter->rest_positions_m()[p] + drag).is_ok());
       } else if (period == 600) {
         for (const std::uint32_t p : {2U, 3U}) ASSERT_TRUE(catheter->release(p).is_ok());
       }
     }
-    ASSERT_EQ(from_params.step(kPeriodS).code(), from_image.step(kPeriodS).code()) << "period " << period;
-    ASSERT_TRUE(same_bits(from_params.positions_m(), from_image.positions_m())) << "period " << period;
-    ASSERT_TRUE(same_bits(from_params.velocities_m_per_s(), from_image.velocities_m_per_s())) << "period " << period;
-    ASSERT_TRUE(same_bits(from_params.hold_forces_n(), from_image.hold_forces_n())) << "period " << period;
-    ASSERT_TRUE(same_bits(from_params.contact_plane_forces_n(), from_image.contact_plane_forces_n()))
+    ASSERT_EQ(from_params.step(kPeriodS).code(), from_image.step(kPeriodS).code())
         << "period " << period;
-    for (const Vec3& force : from_image.contact_plane_forces_n()) touched = touched || !force.isZero(0.0F);
+    ASSERT_TRUE(same_bits(from_params.positions_m(), from_image.positions_m()))
+        << "period " << period;
+    ASSERT_TRUE(same_bits(from_params.velocities_m_per_s(), from_image.velocities_m_per_s()))
+        << "period " << period;
+    ASSERT_TRUE(same_bits(from_params.hold_forces_n(), from_image.hold_forces_n()))
+        << "period " << period;
+    ASSERT_TRUE(
+        same_bits(from_params.contact_plane_forces_n(), from_image.contact_plane_forces_n()))
+        << "period " << period;
+    for (const Vec3& force : from_image.contact_plane_forces_n())
+      touched = touched || !force.isZero(0.0F);
     held = held || !from_image.hold_forces_n()[2].isZero(0.0F);
   }
   // The run exercised what it claims to: contacts engaged, the grasp pulled, the chain moved.
   EXPECT_TRUE(touched);
   EXPECT_TRUE(held);
-  EXPECT_GT((from_image.positions_m()[count - 1] - from_image.rest_positions_m()[count - 1]).norm(), 1e-4F);
+  EXPECT_GT((from_image.positions_m()[count - 1] - from_image.rest_positions_m()[count - 1]).norm(),
+            1e-4F);
 }
 
 TEST_F(CatheterDefinitionImage, TheImageCatheterStepsBitIdenticallyToTheParametersCatheter) {
@@ -194,7 +211,8 @@ TEST_F(CatheterDefinitionImage, TheImageCatheterStepsBitIdenticallyToTheParamete
     ASSERT_TRUE(from_params) << from_params.error().message;
     ASSERT_TRUE(from_image) << from_image.error().message;
     EXPECT_EQ(from_params->stiffness().axial_n_per_m, from_image->stiffness().axial_n_per_m);
-    EXPECT_EQ(from_params->stiffness().bending_n_m_per_rad, from_image->stiffness().bending_n_m_per_rad);
+    EXPECT_EQ(from_params->stiffness().bending_n_m_per_rad,
+              from_image->stiffness().bending_n_m_per_rad);
     EXPECT_EQ(from_params->stiffness().rest_length_m, from_image->stiffness().rest_length_m);
     EXPECT_EQ(from_params->stiffness().root_tangent, from_image->stiffness().root_tangent);
     EXPECT_EQ(from_params->stable_substep_s(), from_image->stable_substep_s());

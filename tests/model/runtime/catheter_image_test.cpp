@@ -64,8 +64,8 @@ class CatheterImage : public ::testing::Test {
     return test::build_raw_image(
         ModelKind::catheter,
         {raw_metadata(metadata),
-         raw_section(SectionId::catheter_parameters, ElementType::u8, static_cast<std::uint32_t>(record_bytes), 1,
-                     payload),
+         raw_section(SectionId::catheter_parameters, ElementType::u8,
+                     static_cast<std::uint32_t>(record_bytes), 1, payload),
          raw_section(SectionId::catheter_rest_positions, ElementType::f32, rows, 3, positions)});
   }
 
@@ -73,7 +73,8 @@ class CatheterImage : public ::testing::Test {
     const CatheterParametersV1 record = catheter_.record();
     std::vector<Eigen::Vector3f> rest(record.particle_count);
     place_catheter_rest(catheter_.inputs.start_m,
-                        Eigen::Vector3f(record.rest_direction[0], record.rest_direction[1], record.rest_direction[2]),
+                        Eigen::Vector3f(record.rest_direction[0], record.rest_direction[1],
+                                        record.rest_direction[2]),
                         record.rest_length_m, rest);
     std::vector<float> flat;
     for (const Eigen::Vector3f& p : rest) flat.insert(flat.end(), p.begin(), p.end());
@@ -122,7 +123,8 @@ TEST_F(CatheterImage, TheRecordIsTheRuntimesDerivationAndLoadsBackFieldForField)
   EXPECT_EQ(data.contact.max_contact_force_n, 4.0F);
   // The rest positions are viewed in place, and are place_catheter_rest's.
   EXPECT_EQ(data.rest_positions_m.data(), image.floats(SectionId::catheter_rest_positions).data());
-  EXPECT_EQ(std::vector<float>(data.rest_positions_m.begin(), data.rest_positions_m.end()), rest_positions());
+  EXPECT_EQ(std::vector<float>(data.rest_positions_m.begin(), data.rest_positions_m.end()),
+            rest_positions());
 
   // Not a catheter image: empty data, which create() refuses.
   const CatheterModelData none = catheter_model_data(ModelImage{});
@@ -170,12 +172,16 @@ TEST_F(CatheterImage, TheCatheterFromTheImageIsTheCatheterFromItsParameters) {
   // The budget is checked against the period at create, as from parameters.
   auto refused = Catheter::create(data, 0.01F, 4, arena);
   ASSERT_FALSE(refused);
-  const std::uint64_t needed = catheter_substeps_for(0.01, static_cast<double>(data.chain.stable_substep_s));
+  const std::uint64_t needed =
+      catheter_substeps_for(0.01, static_cast<double>(data.chain.stable_substep_s));
   EXPECT_GT(needed, 64U);
-  EXPECT_NE(refused.error().message.find("needs " + std::to_string(needed) + " substeps"), std::string::npos)
+  EXPECT_NE(refused.error().message.find("needs " + std::to_string(needed) + " substeps"),
+            std::string::npos)
       << refused.error().message;
-  EXPECT_NE(refused.error().message.find("max_substeps = 64"), std::string::npos) << refused.error().message;
-  EXPECT_NE(refused.error().message.find("EA = 157 N"), std::string::npos) << refused.error().message;
+  EXPECT_NE(refused.error().message.find("max_substeps = 64"), std::string::npos)
+      << refused.error().message;
+  EXPECT_NE(refused.error().message.find("EA = 157 N"), std::string::npos)
+      << refused.error().message;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -186,16 +192,18 @@ TEST_F(CatheterImage, SectionsOfOtherKindsAreRefusedBothWays) {
   put<std::uint32_t>(bytes, test::entry_position(bytes, SectionId::catheter_rest_positions),
                      static_cast<std::uint32_t>(SectionId::rest_positions));
   recompute_checksum(bytes);
-  EXPECT_TRUE(failed_with(load_bytes(bytes), label(),
-                          "section 'rest_positions' does not belong in a catheter image (it is part of "
-                          "modal_shell and tet_tensor)"));
+  EXPECT_TRUE(
+      failed_with(load_bytes(bytes), label(),
+                  "section 'rest_positions' does not belong in a catheter image (it is part of "
+                  "modal_shell and tet_tensor)"));
   std::vector<std::byte> modal = test::SmallModalShell().bytes();
   put<std::uint32_t>(modal, test::entry_position(modal, SectionId::fixed_nodes),
                      static_cast<std::uint32_t>(SectionId::catheter_parameters));
   recompute_checksum(modal);
-  EXPECT_TRUE(failed_with(load_bytes(modal, ModelKind::modal_shell), label(),
-                          "section 'catheter_parameters' does not belong in a modal_shell image (it is "
-                          "part of catheter)"));
+  EXPECT_TRUE(
+      failed_with(load_bytes(modal, ModelKind::modal_shell), label(),
+                  "section 'catheter_parameters' does not belong in a modal_shell image (it is "
+                  "part of catheter)"));
   EXPECT_TRUE(failed_with(load_bytes(catheter_.bytes(), ModelKind::tet_tensor), label(),
                           "model_kind is catheter, the scene expects tet_tensor"));
 }
@@ -206,16 +214,19 @@ TEST_F(CatheterImage, MissingSectionsAndWrongShapesAreRefused) {
   ASSERT_TRUE(load_bytes(raw_image(record, sizeof record, positions, 5)));
 
   std::vector<RawSection> without_positions = {raw_metadata(offline::make_metadata())};
-  EXPECT_TRUE(failed_with(load_bytes(test::build_raw_image(ModelKind::catheter, without_positions)), label(),
-                          "a catheter image needs section 'catheter_parameters', which is missing"));
+  EXPECT_TRUE(failed_with(
+      load_bytes(test::build_raw_image(ModelKind::catheter, without_positions)), label(),
+      "a catheter image needs section 'catheter_parameters', which is missing"));
   const std::vector<float> four(positions.begin(), positions.end() - 3);
-  EXPECT_TRUE(failed_with(load_bytes(raw_image(record, sizeof record, four, 4)), label(),
-                          "section 'catheter_rest_positions' has 4 rows, expected 5 (catheter_parameters "
-                          "particle_count)"));
+  EXPECT_TRUE(
+      failed_with(load_bytes(raw_image(record, sizeof record, four, 4)), label(),
+                  "section 'catheter_rest_positions' has 4 rows, expected 5 (catheter_parameters "
+                  "particle_count)"));
   EXPECT_TRUE(failed_with(load_bytes(raw_image(record, 124, positions, 5)), label(),
                           "section 'catheter_parameters' is 124 bytes, record version 1 has 128"));
-  EXPECT_TRUE(failed_with(load_bytes(raw_image(record, 3, positions, 5)), label(),
-                          "section 'catheter_parameters' is 3 bytes: too short to hold its record_version"));
+  EXPECT_TRUE(failed_with(
+      load_bytes(raw_image(record, 3, positions, 5)), label(),
+      "section 'catheter_parameters' is 3 bytes: too short to hold its record_version"));
   // Another record version is refused before its size or any field is read.
   CatheterParametersV1 newer = record;
   newer.record_version = 2;
@@ -235,8 +246,9 @@ TEST_F(CatheterImage, MetadataMustDescribeAChain) {
     recompute_checksum(bytes);
     return load_bytes(bytes);
   };
-  EXPECT_TRUE(failed_with(metadata_field(offsetof(ImageMetadataV1, node_count), 6), label(),
-                          "metadata node_count 6 differs from section 'catheter_parameters' particle_count 5"));
+  EXPECT_TRUE(failed_with(
+      metadata_field(offsetof(ImageMetadataV1, node_count), 6), label(),
+      "metadata node_count 6 differs from section 'catheter_parameters' particle_count 5"));
   EXPECT_TRUE(failed_with(metadata_field(offsetof(ImageMetadataV1, mode_count), 2), label(),
                           "a catheter image has no element, modes, surface nodes or correction"));
   EXPECT_TRUE(failed_with(metadata_field(offsetof(ImageMetadataV1, element_type), 3), label(),
@@ -260,18 +272,23 @@ TEST_F(CatheterImage, EveryRecordFieldIsChecked) {
        "section 'catheter_parameters' particle_mass_kg is 0, expected a finite value > 0"},
       {offsetof(CatheterParametersV1, particle_mass_kg), kNan, "particle_mass_kg is nan"},
       {offsetof(CatheterParametersV1, rest_length_m), -0.015F, "rest_length_m is -0.015"},
-      {offsetof(CatheterParametersV1, axial_stiffness_n_per_m), kInf, "axial_stiffness_n_per_m is inf"},
-      {offsetof(CatheterParametersV1, bending_stiffness_n_m_per_rad), 0.0F, "bending_stiffness_n_m_per_rad is 0"},
+      {offsetof(CatheterParametersV1, axial_stiffness_n_per_m), kInf,
+       "axial_stiffness_n_per_m is inf"},
+      {offsetof(CatheterParametersV1, bending_stiffness_n_m_per_rad), 0.0F,
+       "bending_stiffness_n_m_per_rad is 0"},
       {offsetof(CatheterParametersV1, radius_m), 0.0F, "radius_m is 0"},
       {offsetof(CatheterParametersV1, stable_substep_s), 0.0F, "stable_substep_s is 0"},
       {offsetof(CatheterParametersV1, length_m), kNan, "length_m is nan"},
-      {offsetof(CatheterParametersV1, linear_density_kg_per_m), -1.0F, "linear_density_kg_per_m is -1"},
+      {offsetof(CatheterParametersV1, linear_density_kg_per_m), -1.0F,
+       "linear_density_kg_per_m is -1"},
       {offsetof(CatheterParametersV1, max_contact_force_n), 0.0F, "max_contact_force_n is 0"},
-      {offsetof(CatheterParametersV1, grasp_stiffness_n_per_m), kInf, "grasp_stiffness_n_per_m is inf"},
+      {offsetof(CatheterParametersV1, grasp_stiffness_n_per_m), kInf,
+       "grasp_stiffness_n_per_m is inf"},
       {offsetof(CatheterParametersV1, damping_n_s_per_m), -5e-4F,
        "damping_n_s_per_m is -5e-04, expected a finite value >= 0"},
       {offsetof(CatheterParametersV1, grasp_friction), kNan, "grasp_friction is nan"},
-      {offsetof(CatheterParametersV1, wall_damping_n_s_per_m), -1.0F, "wall_damping_n_s_per_m is -1"},
+      {offsetof(CatheterParametersV1, wall_damping_n_s_per_m), -1.0F,
+       "wall_damping_n_s_per_m is -1"},
       {offsetof(CatheterParametersV1, gravity_m_per_s2) + 8, kInf, "gravity_m_per_s2[2] is inf"},
       {offsetof(CatheterParametersV1, rest_direction) + 4, kNan, "rest_direction[1] is nan"},
       // Unit rest tangent.
@@ -281,15 +298,18 @@ TEST_F(CatheterImage, EveryRecordFieldIsChecked) {
        "rest_length_m is 0.015, but length_m / (particle_count - 1) = 0.03"},
       {offsetof(CatheterParametersV1, particle_mass_kg), 1.01F * good.particle_mass_kg,
        ", but linear_density_kg_per_m * length_m / particle_count = 1.98e-05"},
-      {offsetof(CatheterParametersV1, axial_stiffness_n), 100.0F, ", but axial_stiffness_n / rest_length_m"},
-      {offsetof(CatheterParametersV1, bending_stiffness_n_m2), 1e-4F, "bending_stiffness_n_m_per_rad is"},
+      {offsetof(CatheterParametersV1, axial_stiffness_n), 100.0F,
+       ", but axial_stiffness_n / rest_length_m"},
+      {offsetof(CatheterParametersV1, bending_stiffness_n_m2), 1e-4F,
+       "bending_stiffness_n_m_per_rad is"},
       // A substep above the stability bound of the record's own constants.
       {offsetof(CatheterParametersV1, stable_substep_s), 1.5F * good.stable_substep_s,
        "the chain would be integrated unstably"},
       // Contacts stiffer than the substep keeps stable.
       {offsetof(CatheterParametersV1, wall_stiffness_n_per_m), 1e6F,
        "wall_stiffness_n_per_m is 1e+06 N/m, above 42097.777 N/m, the stiffest contact"},
-      {offsetof(CatheterParametersV1, tool_stiffness_n_per_m), 1e6F, "tool_stiffness_n_per_m is 1e+06 N/m"},
+      {offsetof(CatheterParametersV1, tool_stiffness_n_per_m), 1e6F,
+       "tool_stiffness_n_per_m is 1e+06 N/m"},
   };
   for (const FloatCase& c : floats) {
     EXPECT_TRUE(failed_with(load_with_field(c.offset, c.value), label(), c.fragment)) << c.fragment;
@@ -302,20 +322,24 @@ TEST_F(CatheterImage, EveryRecordFieldIsChecked) {
   const CountCase counts[] = {
       {offsetof(CatheterParametersV1, record_version), 0,
        "catheter record version 0, this build reads 1: rebuild it with modelc"},
-      {offsetof(CatheterParametersV1, record_version), 2, "catheter record version 2, this build reads 1"},
+      {offsetof(CatheterParametersV1, record_version), 2,
+       "catheter record version 2, this build reads 1"},
       {offsetof(CatheterParametersV1, particle_count), 2,
        "section 'catheter_parameters' particle_count is 2, expected 3..256"},
-      {offsetof(CatheterParametersV1, particle_count), 257, "particle_count is 257, expected 3..256"},
+      {offsetof(CatheterParametersV1, particle_count), 257,
+       "particle_count is 257, expected 3..256"},
       {offsetof(CatheterParametersV1, particle_count), 6, "metadata node_count 5 differs"},
       {offsetof(CatheterParametersV1, max_substeps), 0, "max_substeps is 0, expected 1..10000"},
-      {offsetof(CatheterParametersV1, max_substeps), 10001, "max_substeps is 10001, expected 1..10000"},
+      {offsetof(CatheterParametersV1, max_substeps), 10001,
+       "max_substeps is 10001, expected 1..10000"},
       {offsetof(CatheterParametersV1, hold_start), 2, "hold_start is 2, expected 0 or 1"},
   };
   for (const CountCase& c : counts) {
     EXPECT_TRUE(failed_with(load_with_field(c.offset, c.value), label(), c.fragment)) << c.fragment;
   }
-  EXPECT_TRUE(failed_with(load_with_field<std::uint8_t>(offsetof(CatheterParametersV1, reserved) + 19, 1),
-                          label(), "section 'catheter_parameters' reserved byte 19 is not zero"));
+  EXPECT_TRUE(
+      failed_with(load_with_field<std::uint8_t>(offsetof(CatheterParametersV1, reserved) + 19, 1),
+                  label(), "section 'catheter_parameters' reserved byte 19 is not zero"));
 }
 
 TEST_F(CatheterImage, RestPositionsMustBeAStraightChainOfEqualSegments) {

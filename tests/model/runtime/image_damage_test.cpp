@@ -43,14 +43,17 @@ TEST_P(ImageDamage, TheUndamagedImageLoads) {
 
 TEST_P(ImageDamage, EveryHeaderFieldBrokenIsRefusedWithItsOwnMessage) {
   const std::vector<std::byte> original = GetParam().bytes();
-  const std::vector<test::HeaderMutation> mutations = test::header_mutations(GetParam().kind, original.size());
+  const std::vector<test::HeaderMutation> mutations =
+      test::header_mutations(GetParam().kind, original.size());
   EXPECT_EQ(mutations.size(), 14U);
   for (const test::HeaderMutation& mutation : mutations) {
-    EXPECT_TRUE(test::failed_with(load(test::mutated(original, mutation)), file().string(), mutation.fragment))
+    EXPECT_TRUE(test::failed_with(load(test::mutated(original, mutation)), file().string(),
+                                  mutation.fragment))
         << mutation.field;
     if (mutation.recompute_checksum) {
       // Refused from the header alone: no arena space reserved (the checksum needs the bytes).
-      EXPECT_EQ(arena_->used_bytes(), mutation.field == "reserved" ? original.size() : 0U) << mutation.field;
+      EXPECT_EQ(arena_->used_bytes(), mutation.field == "reserved" ? original.size() : 0U)
+          << mutation.field;
     }
   }
 }
@@ -62,16 +65,20 @@ TEST_P(ImageDamage, AByteFlippedInEachSectionIsRefusedByTheChecksum) {
   for (const auto& [id, position] : middles) {
     std::vector<std::byte> bytes = original;
     bytes[position] ^= std::byte{0x40};
-    EXPECT_TRUE(test::failed_with(load(bytes), file().string(), "checksum mismatch")) << section_name(id);
+    EXPECT_TRUE(test::failed_with(load(bytes), file().string(), "checksum mismatch"))
+        << section_name(id);
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(
     EveryKind, ImageDamage,
-    ::testing::Values(KindImage{ModelKind::modal_shell, [] { return test::SmallModalShell().bytes(); }},
-                      KindImage{ModelKind::tet_tensor, [] { return test::SmallTetTensor().bytes(); }},
-                      KindImage{ModelKind::catheter, [] { return test::SmallCatheter().bytes(); }}),
-    [](const ::testing::TestParamInfo<KindImage>& param) { return std::string(model_kind_name(param.param.kind)); });
+    ::testing::Values(
+        KindImage{ModelKind::modal_shell, [] { return test::SmallModalShell().bytes(); }},
+        KindImage{ModelKind::tet_tensor, [] { return test::SmallTetTensor().bytes(); }},
+        KindImage{ModelKind::catheter, [] { return test::SmallCatheter().bytes(); }}),
+    [](const ::testing::TestParamInfo<KindImage>& param) {
+      return std::string(model_kind_name(param.param.kind));
+    });
 
 }  // namespace
 }  // namespace trainer::model

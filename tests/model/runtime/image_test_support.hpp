@@ -202,7 +202,8 @@ struct SmallTetTensor {
     SmallModalShell::expect_ok(writer.add_u32(SectionId::fixed_nodes, fixed_nodes, 1, 1));
     SmallModalShell::expect_ok(writer.add_u32(SectionId::surface_nodes, contact_nodes, 1, 1));
     SmallModalShell::expect_ok(writer.add_u32(SectionId::tensor_nodes, stored_nodes, 3, 1));
-    SmallModalShell::expect_ok(writer.add_f32(SectionId::tensor_displacement, displacement_tensors));
+    SmallModalShell::expect_ok(
+        writer.add_f32(SectionId::tensor_displacement, displacement_tensors));
     SmallModalShell::expect_ok(writer.add_f32(SectionId::tensor_force, force_tensor, 1, 9));
     auto serialized = writer.serialize();
     EXPECT_TRUE(serialized) << serialized.error().message;
@@ -333,9 +334,12 @@ struct HeaderMutation {
 // and above the maximum), section_table_offset, the checksum itself, a reserved byte.
 inline std::vector<HeaderMutation> header_mutations(ModelKind kind, std::size_t file_bytes) {
   const auto set_u32 = [](std::size_t offset, std::uint32_t value) {
-    return [offset, value](std::vector<std::byte>& bytes) { put<std::uint32_t>(bytes, offset, value); };
+    return [offset, value](std::vector<std::byte>& bytes) {
+      put<std::uint32_t>(bytes, offset, value);
+    };
   };
-  const ModelKind other = kind == ModelKind::modal_shell ? ModelKind::catheter : ModelKind::modal_shell;
+  const ModelKind other =
+      kind == ModelKind::modal_shell ? ModelKind::catheter : ModelKind::modal_shell;
   std::vector<HeaderMutation> mutations = {
       {"magic", [](std::vector<std::byte>& bytes) { std::memcpy(bytes.data(), "HTRMODEM", 8); },
        "not \"HTRMODEL\": not a model image"},
@@ -349,8 +353,10 @@ inline std::vector<HeaderMutation> header_mutations(ModelKind kind, std::size_t 
        "the image was written big-endian"},
       {"byte_order_mark", set_u32(offsetof(ImageHeaderV1, byte_order_mark), 0xDEADBEEFU),
        "not a valid byte order mark"},
-      {"model_kind", set_u32(offsetof(ImageHeaderV1, model_kind), static_cast<std::uint32_t>(other)),
-       std::string("model_kind is ") + model_kind_name(other) + ", the scene expects " + model_kind_name(kind)},
+      {"model_kind",
+       set_u32(offsetof(ImageHeaderV1, model_kind), static_cast<std::uint32_t>(other)),
+       std::string("model_kind is ") + model_kind_name(other) + ", the scene expects " +
+           model_kind_name(kind)},
       {"model_kind", set_u32(offsetof(ImageHeaderV1, model_kind), 7), "model_kind 7 is unknown"},
       {"file_bytes",
        [file_bytes](std::vector<std::byte>& bytes) {
@@ -365,28 +371,36 @@ inline std::vector<HeaderMutation> header_mutations(ModelKind kind, std::size_t 
        "section_table_offset is 192"},
       {"checksum",
        [](std::vector<std::byte>& bytes) {
-         put<std::uint64_t>(bytes, kImageChecksumOffset, get<std::uint64_t>(bytes, kImageChecksumOffset) + 1);
+         put<std::uint64_t>(bytes, kImageChecksumOffset,
+                            get<std::uint64_t>(bytes, kImageChecksumOffset) + 1);
        },
        "checksum mismatch: header says 0x", false},
-      {"reserved", [](std::vector<std::byte>& bytes) { bytes[offsetof(ImageHeaderV1, reserved) + 7] = std::byte{1}; },
-       "header reserved byte " + std::to_string(offsetof(ImageHeaderV1, reserved) + 7) + " is not zero"},
+      {"reserved",
+       [](std::vector<std::byte>& bytes) {
+         bytes[offsetof(ImageHeaderV1, reserved) + 7] = std::byte{1};
+       },
+       "header reserved byte " + std::to_string(offsetof(ImageHeaderV1, reserved) + 7) +
+           " is not zero"},
   };
   return mutations;
 }
 
 // The image with `mutation` applied (and the checksum recomputed unless it is the mutation).
-inline std::vector<std::byte> mutated(std::vector<std::byte> bytes, const HeaderMutation& mutation) {
+inline std::vector<std::byte> mutated(std::vector<std::byte> bytes,
+                                      const HeaderMutation& mutation) {
   mutation.patch(bytes);
   if (mutation.recompute_checksum) recompute_checksum(bytes);
   return bytes;
 }
 
 // Every non-empty section of an image: its id and the position of the byte in its middle.
-inline std::vector<std::pair<SectionId, std::size_t>> section_middle_bytes(const std::vector<std::byte>& bytes) {
+inline std::vector<std::pair<SectionId, std::size_t>> section_middle_bytes(
+    const std::vector<std::byte>& bytes) {
   std::vector<std::pair<SectionId, std::size_t>> middles;
   const auto count = get<std::uint32_t>(bytes, offsetof(ImageHeaderV1, section_count));
   for (std::uint32_t i = 0; i < count; ++i) {
-    const auto entry = get<SectionEntryV1>(bytes, kImageHeaderBytes + std::size_t{i} * kImageSectionEntryBytes);
+    const auto entry =
+        get<SectionEntryV1>(bytes, kImageHeaderBytes + std::size_t{i} * kImageSectionEntryBytes);
     const std::size_t size = entry.element_count * element_type_bytes(entry.element_type);
     if (size > 0) middles.emplace_back(static_cast<SectionId>(entry.id), entry.offset + size / 2);
   }

@@ -11,7 +11,8 @@
 
 namespace trainer::tools::modelc {
 
-inline nlohmann::json built_image_entry(const std::string& name, const config::ModelDefinition& definition,
+inline nlohmann::json built_image_entry(const std::string& name,
+                                        const config::ModelDefinition& definition,
                                         const char* kind) {
   return {{"name", name},
           {"definition", definition.source_path.string()},

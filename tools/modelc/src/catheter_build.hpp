@@ -15,7 +15,8 @@ namespace trainer::tools::modelc {
 // output: the substeps one period costs at the stored substep, against the definition's budget
 // (the trainer refuses a catheter beyond it when it loads the scene). Throws std::runtime_error
 // with the definition's refusal.
-nlohmann::json build_catheter_model(const std::string& name, const config::ModelDefinition& definition,
+nlohmann::json build_catheter_model(const std::string& name,
+                                    const config::ModelDefinition& definition,
                                     double loop_period_s);
 
 }  // namespace trainer::tools::modelc

@@ -101,7 +101,9 @@ core::Expected<std::vector<offline::TetNodeFix>> tet_fixes_from(
 offline::CatheterImageInputs catheter_inputs_from(const config::ModelDefinition& definition) {
   const config::CatheterConfig& c = definition.catheter;
   const auto f = [](double value) { return static_cast<float>(value); };
-  const auto vector = [&f](const config::Vec3& v) { return Eigen::Vector3f(f(v[0]), f(v[1]), f(v[2])); };
+  const auto vector = [&f](const config::Vec3& v) {
+    return Eigen::Vector3f(f(v[0]), f(v[1]), f(v[2]));
+  };
   offline::CatheterImageInputs inputs;
   inputs.params = {.length_m = f(c.length_m),
                    .outer_radius_m = f(c.outer_radius_m),

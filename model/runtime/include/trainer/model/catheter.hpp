@@ -284,7 +284,9 @@ class Catheter {
 
   void reset() noexcept;  // rest shape, zero velocity, forces and holds cleared, clamp off
 
-  std::span<const Vec3> rest_positions_m() const noexcept { return {rest_positions_.data(), count_}; }
+  std::span<const Vec3> rest_positions_m() const noexcept {
+    return {rest_positions_.data(), count_};
+  }
   const Vec3& rest_direction() const noexcept { return direction_; }  // unit
   std::uint32_t max_substeps() const noexcept { return max_substeps_; }
 
@@ -309,10 +311,10 @@ class Catheter {
   // What both create()s share: counts the substeps of the period (refusing beyond the budget)
   // and carves every array from the arena. The rest positions are left for the caller to fill
   // before reset().
-  static core::Expected<Catheter> allocate(const CatheterParams& params, const CatheterChain& chain,
-                                           const Vec3& rest_direction, float haptic_period_s,
-                                           std::uint32_t max_substeps, std::uint32_t max_contact_planes,
-                                           core::Arena& arena);
+  static core::Expected<Catheter> allocate(const CatheterParams& params,
+                                           const CatheterChain& chain, const Vec3& rest_direction,
+                                           float haptic_period_s, std::uint32_t max_substeps,
+                                           std::uint32_t max_contact_planes, core::Arena& arena);
   // false if the state became non-finite. `fraction` is this substep's share of the step
   // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
   bool substep(float dt_s, float fraction, float hold_step) noexcept;

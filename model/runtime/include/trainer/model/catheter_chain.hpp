@@ -19,12 +19,12 @@ namespace trainer::model {
 // Physical description of the catheter (SI).
 struct CatheterParams {
   float length_m = 0.0F;
-  float outer_radius_m = 0.0F;               // sphere of influence per particle (contact)
-  float bending_stiffness_n_m2 = 0.0F;       // EI
-  float axial_stiffness_n = 0.0F;            // EA
-  float linear_density_kg_per_m = 0.0F;      // ρ_l
-  float damping_n_s_per_m = 0.0F;            // b per particle, ≥ 0
-  std::uint32_t particle_count = 0;          // N, 3..kMaxCatheterParticles
+  float outer_radius_m = 0.0F;           // sphere of influence per particle (contact)
+  float bending_stiffness_n_m2 = 0.0F;   // EI
+  float axial_stiffness_n = 0.0F;        // EA
+  float linear_density_kg_per_m = 0.0F;  // ρ_l
+  float damping_n_s_per_m = 0.0F;        // b per particle, ≥ 0
+  std::uint32_t particle_count = 0;      // N, 3..kMaxCatheterParticles
 };
 
 // Most particles a chain may have (Catheter::kMaxParticles).
@@ -34,14 +34,14 @@ inline constexpr std::uint32_t kMaxCatheterSubsteps = 10000;
 
 // The chain's constants as the runtime stores them (float).
 struct CatheterChain {
-  std::uint32_t particle_count = 0;   // N
-  float rest_length_m = 0.0F;         // l0 = L / (N − 1)
-  float particle_mass_kg = 0.0F;      // m = ρ_l L / N
-  float axial_n_per_m = 0.0F;         // k_s = EA / l0
-  float bending_n_m_per_rad = 0.0F;   // k_b = EI / l0
-  float radius_m = 0.0F;              // outer radius
-  float damping_n_s_per_m = 0.0F;     // b per particle
-  float stable_substep_s = 0.0F;      // catheter_stable_substep_s() of the double constants
+  std::uint32_t particle_count = 0;  // N
+  float rest_length_m = 0.0F;        // l0 = L / (N − 1)
+  float particle_mass_kg = 0.0F;     // m = ρ_l L / N
+  float axial_n_per_m = 0.0F;        // k_s = EA / l0
+  float bending_n_m_per_rad = 0.0F;  // k_b = EI / l0
+  float radius_m = 0.0F;             // outer radius
+  float damping_n_s_per_m = 0.0F;    // b per particle
+  float stable_substep_s = 0.0F;     // catheter_stable_substep_s() of the double constants
 };
 
 // The largest stable substep of semi-implicit Euler for these constants (docs/catheter.md,
@@ -82,7 +82,7 @@ inline float contact_stiffness_limit_n_per_m(float particle_mass_kg, float subst
 
 // A catheter definition's [contact] as the trainer applies it (float; docs/config.md).
 struct CatheterContactSettings {
-  float wall_stiffness_n_per_m = 0.0F;   // particle sphere vs duct wall, ≤ the stiffness limit
+  float wall_stiffness_n_per_m = 0.0F;  // particle sphere vs duct wall, ≤ the stiffness limit
   float wall_damping_n_s_per_m = 0.0F;
   float tool_stiffness_n_per_m = 0.0F;   // vs shaft and jaw capsules, ≤ the stiffness limit
   float grasp_stiffness_n_per_m = 0.0F;  // jaw squeeze per metre past touching
@@ -94,12 +94,12 @@ struct CatheterContactSettings {
 // parameter record. Only the chain, the budget, the rest shape and direction build the
 // Catheter; hold_start, gravity and contact are for the trainer that steps it.
 struct CatheterModelData {
-  CatheterParams params;                    // what the chain was derived from (messages)
+  CatheterParams params;  // what the chain was derived from (messages)
   CatheterChain chain;
-  std::uint32_t max_substeps = 0;           // budget of one haptic period
-  std::span<const float> rest_positions_m;  // N × 3, row-major, trainer frame
+  std::uint32_t max_substeps = 0;                             // budget of one haptic period
+  std::span<const float> rest_positions_m;                    // N × 3, row-major, trainer frame
   Eigen::Vector3f rest_direction = Eigen::Vector3f::UnitX();  // unit; the clamped root's tangent
-  bool hold_start = false;                  // apply Catheter::clamp_start(true) after create
+  bool hold_start = false;  // apply Catheter::clamp_start(true) after create
   Eigen::Vector3f gravity_m_per_s2 = Eigen::Vector3f::Zero();
   CatheterContactSettings contact;
 };

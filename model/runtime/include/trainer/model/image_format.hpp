@@ -161,7 +161,7 @@ struct CatheterParametersV1 {
   std::uint32_t record_version;  // kCatheterRecordVersion
   std::uint32_t particle_count;  // N, 3..Catheter::kMaxParticles
   std::uint32_t max_substeps;    // substep budget of one haptic period, 1..kMaxCatheterSubsteps
-  std::uint32_t hold_start;      // 1 = clamped start (particle 0 and the root tangent held), 0 = free
+  std::uint32_t hold_start;      // 1 = clamped start (particle 0 and root tangent held), 0 = free
   // The chain (model::CatheterChain).
   float rest_length_m;                  // l0 = L/(N−1)
   float particle_mass_kg;               // m = ρ_l L / N

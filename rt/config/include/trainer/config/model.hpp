@@ -116,7 +116,7 @@ struct ModelDefinition {
   std::filesystem::path source_path;  // absolute
   std::string name;
   ModelKind kind = ModelKind::modal_shell;
-  std::filesystem::path image_path;   // every kind: absolute; where modelc writes it, the trainer reads it
+  std::filesystem::path image_path;   // absolute; where modelc writes the image, the trainer reads it
   MeshSource mesh_source = MeshSource::tube;
   TubeMeshConfig tube;
   BoxMeshConfig box;
