@@ -1,116 +1,98 @@
-// Particle catheter: parameter validation, stable substep, and the semi-implicit Euler loop
-// (Basdogan eq. 27–28). The force law itself is the shared template in catheter.hpp.
+// Particle catheter: creation from parameters or from an image's data (the derivation itself is
+// catheter_chain.cpp), and the semi-implicit Euler loop (Basdogan eq. 27–28). The force law is
+// the shared template in catheter.hpp.
 #include "trainer/model/catheter.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
 #include <utility>
 
+#include "catheter_refusal.hpp"
+
 namespace trainer::model {
-namespace {
 
-bool positive_finite(float value) noexcept { return std::isfinite(value) && value > 0.0F; }
-
-std::string number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.6g", value);
-  return text;
-}
-
-}  // namespace
-
-std::uint64_t Catheter::substeps_for(double period_s, double substep_s) noexcept {
-  const double ratio = std::ceil(period_s / substep_s - 1e-9);  // exact multiples stay exact
-  return ratio < 1.0 ? 1U : static_cast<std::uint64_t>(ratio);
-}
+using detail::catheter_positive_finite;
+using detail::catheter_refusal;
 
 core::Expected<Catheter> Catheter::create(const CatheterParams& params, const CatheterSetup& setup,
                                           core::Arena& arena) {
-  const auto refuse = [](const std::string& what) {
-    return core::make_error("catheter: " + what);
-  };
-  if (params.particle_count < 3 || params.particle_count > kMaxParticles) {
-    return refuse("particle_count = " + std::to_string(params.particle_count) + ": expected 3.." +
-                  std::to_string(kMaxParticles));
-  }
-  if (!positive_finite(params.length_m)) return refuse("length_m = " + number(params.length_m) + ": expected > 0");
-  if (!positive_finite(params.outer_radius_m)) {
-    return refuse("outer_radius_m = " + number(params.outer_radius_m) + ": expected > 0");
-  }
-  if (!positive_finite(params.bending_stiffness_n_m2)) {
-    return refuse("bending_stiffness_n_m2 (EI) = " + number(params.bending_stiffness_n_m2) + ": expected > 0");
-  }
-  if (!positive_finite(params.axial_stiffness_n)) {
-    return refuse("axial_stiffness_n (EA) = " + number(params.axial_stiffness_n) + ": expected > 0");
-  }
-  if (!positive_finite(params.linear_density_kg_per_m)) {
-    return refuse("linear_density_kg_per_m = " + number(params.linear_density_kg_per_m) + ": expected > 0");
-  }
-  if (!std::isfinite(params.damping_n_s_per_m) || params.damping_n_s_per_m < 0.0F) {
-    return refuse("damping_n_s_per_m = " + number(params.damping_n_s_per_m) + ": expected >= 0");
-  }
-  if (!positive_finite(setup.haptic_period_s)) {
-    return refuse("haptic_period_s = " + number(setup.haptic_period_s) + ": expected > 0");
-  }
-  if (setup.max_substeps == 0) return refuse("max_substeps = 0: expected >= 1");
-  if (!setup.start_position_m.allFinite()) return refuse("start_position_m is not finite");
-  const float direction_norm = setup.direction.norm();
-  if (!positive_finite(direction_norm)) return refuse("direction: expected a finite non-zero vector");
+  auto chain = derive_catheter_chain(params);
+  if (!chain) return std::move(chain).error();
+  if (!setup.start_position_m.allFinite())
+    return catheter_refusal("start_position_m is not finite");
+  auto direction = catheter_rest_direction(setup.direction);
+  if (!direction) return std::move(direction).error();
+  auto catheter = allocate(params, chain.value(), direction.value(), setup.haptic_period_s,
+                           setup.max_substeps, setup.max_contact_planes, arena);
+  if (!catheter) return catheter;
+  place_catheter_rest(setup.start_position_m, direction.value(), chain->rest_length_m,
+                      catheter->rest_positions_);
+  catheter->reset();
+  return catheter;
+}
 
+core::Expected<Catheter> Catheter::create(const CatheterModelData& data, float haptic_period_s,
+                                          std::uint32_t max_contact_planes, core::Arena& arena) {
+  // The loader has checked every field of an image; these guard what create() relies on when
+  // the data comes from elsewhere.
+  const CatheterChain& chain = data.chain;
+  if (chain.particle_count < 3 || chain.particle_count > kMaxParticles ||
+      data.rest_positions_m.size() != 3 * std::size_t{chain.particle_count}) {
+    return catheter_refusal("image data has " + std::to_string(chain.particle_count) +
+                            " particles and " + std::to_string(data.rest_positions_m.size()) +
+                            " rest coordinates: expected 3.." + std::to_string(kMaxParticles) +
+                            " particles, 3 coordinates each");
+  }
+  if (!catheter_positive_finite(chain.particle_mass_kg) ||
+      !catheter_positive_finite(chain.rest_length_m) ||
+      !catheter_positive_finite(chain.stable_substep_s) || !std::isfinite(chain.axial_n_per_m) ||
+      !std::isfinite(chain.bending_n_m_per_rad) || !(chain.damping_n_s_per_m >= 0.0F)) {
+    return catheter_refusal(
+        "image data: particle mass, segment and stable substep must be > 0, the spring "
+        "constants finite and the damping >= 0");
+  }
+  auto catheter = allocate(data.params, chain, data.rest_direction, haptic_period_s,
+                           data.max_substeps, max_contact_planes, arena);
+  if (!catheter) return catheter;
+  for (std::size_t i = 0; i < chain.particle_count; ++i) {
+    catheter->rest_positions_[i] =
+        Vec3(data.rest_positions_m[3 * i], data.rest_positions_m[3 * i + 1],
+             data.rest_positions_m[3 * i + 2]);
+  }
+  catheter->reset();
+  return catheter;
+}
+
+core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
+                                            const CatheterChain& chain, const Vec3& rest_direction,
+                                            float haptic_period_s, std::uint32_t max_substeps,
+                                            std::uint32_t max_contact_planes, core::Arena& arena) {
+  auto substeps = catheter_substeps_per_period(params, chain, haptic_period_s, max_substeps);
+  if (!substeps) return std::move(substeps).error();
   Catheter catheter;
-  catheter.count_ = params.particle_count;
-  const double count = static_cast<double>(params.particle_count);
-  const double rest_length_m = static_cast<double>(params.length_m) / (count - 1.0);
-  const double mass_kg = static_cast<double>(params.linear_density_kg_per_m) *
-                         static_cast<double>(params.length_m) / count;
-  const double axial_n_per_m = static_cast<double>(params.axial_stiffness_n) / rest_length_m;
-  const double bending_n_m = static_cast<double>(params.bending_stiffness_n_m2) / rest_length_m;
-  const double omega_max_squared =
-      4.0 * axial_n_per_m / mass_kg + 20.0 * bending_n_m / (mass_kg * rest_length_m * rest_length_m);
-  double substep_s = 0.5 * 2.0 / std::sqrt(omega_max_squared);
-  if (params.damping_n_s_per_m > 0.0F) {
-    substep_s = std::min(substep_s, mass_kg / static_cast<double>(params.damping_n_s_per_m));
-  }
-  // step() divides the period by the stored float substep, so count with that same value: the
-  // double one can round to a float a few ulp smaller, and a period within rounding of a
-  // multiple of it would then need one substep more at run time than counted here (a catheter
-  // accepted at exactly max_substeps would refuse every step).
-  const float stored_substep_s = static_cast<float>(substep_s);
-  const std::uint64_t needed = substeps_for(static_cast<double>(setup.haptic_period_s),
-                                            static_cast<double>(stored_substep_s));
-  if (needed > setup.max_substeps) {
-    return refuse("a haptic period of " + number(setup.haptic_period_s) + " s needs " +
-                  std::to_string(needed) + " substeps of at most " + number(substep_s) +
-                  " s (stable step from EA = " + number(params.axial_stiffness_n) +
-                  " N, EI = " + number(params.bending_stiffness_n_m2) + " N·m², particle mass " +
-                  number(mass_kg) + " kg, segment " + number(rest_length_m) + " m, damping " +
-                  number(params.damping_n_s_per_m) + " N·s/m) but max_substeps = " +
-                  std::to_string(setup.max_substeps) +
-                  ": raise max_substeps, use fewer particles, a softer EA, or a shorter period");
-  }
-  catheter.mass_kg_ = static_cast<float>(mass_kg);
-  catheter.damping_n_s_per_m_ = params.damping_n_s_per_m;
-  catheter.radius_m_ = params.outer_radius_m;
-  catheter.stable_substep_s_ = stored_substep_s;
-  catheter.substeps_per_period_ = static_cast<std::uint32_t>(needed);
-  catheter.max_substeps_ = setup.max_substeps;
-  catheter.stiffness_.axial_n_per_m = static_cast<float>(axial_n_per_m);
-  catheter.stiffness_.bending_n_m_per_rad = static_cast<float>(bending_n_m);
-  catheter.stiffness_.rest_length_m = static_cast<float>(rest_length_m);
-  catheter.start_m_ = setup.start_position_m;
-  catheter.direction_ = setup.direction / direction_norm;
-  catheter.stiffness_.root_tangent = catheter.direction_;
+  catheter.count_ = chain.particle_count;
+  catheter.mass_kg_ = chain.particle_mass_kg;
+  catheter.damping_n_s_per_m_ = chain.damping_n_s_per_m;
+  catheter.radius_m_ = chain.radius_m;
+  catheter.stable_substep_s_ = chain.stable_substep_s;
+  catheter.substeps_per_period_ = substeps.value();
+  catheter.max_substeps_ = max_substeps;
+  catheter.stiffness_.axial_n_per_m = chain.axial_n_per_m;
+  catheter.stiffness_.bending_n_m_per_rad = chain.bending_n_m_per_rad;
+  catheter.stiffness_.rest_length_m = chain.rest_length_m;
+  catheter.direction_ = rest_direction;
+  catheter.stiffness_.root_tangent = rest_direction;
 
-  const std::size_t n = params.particle_count;
+  const std::size_t n = chain.particle_count;
   auto take = [&](std::span<Vec3>& out, const char* what) -> core::Expected<void> {
     auto span = arena.allocate_array<Vec3>(n, what);
     if (!span) return std::move(span).error();
     out = span.value();
     return {};
   };
-  for (auto [out, what] : {std::pair{&catheter.positions_, "catheter positions"},
+  for (auto [out, what] : {std::pair{&catheter.rest_positions_, "catheter rest positions"},
+                           std::pair{&catheter.positions_, "catheter positions"},
                            std::pair{&catheter.velocities_, "catheter velocities"},
                            std::pair{&catheter.forces_, "catheter forces"},
                            std::pair{&catheter.external_n_, "catheter external forces"},
@@ -124,15 +106,15 @@ core::Expected<Catheter> Catheter::create(const CatheterParams& params, const Ca
   auto held = arena.allocate_array<std::uint8_t>(n, "catheter held flags");
   if (!held) return std::move(held).error();
   catheter.held_ = held.value();
-  if (setup.max_contact_planes > 0) {
-    auto planes = arena.allocate_array<ContactPlane>(setup.max_contact_planes, "catheter contact planes");
+  if (max_contact_planes > 0) {
+    auto planes = arena.allocate_array<ContactPlane>(max_contact_planes, "catheter contact planes");
     if (!planes) return std::move(planes).error();
     catheter.planes_ = planes.value();
-    auto plane_forces = arena.allocate_array<Vec3>(setup.max_contact_planes, "catheter contact plane forces");
+    auto plane_forces =
+        arena.allocate_array<Vec3>(max_contact_planes, "catheter contact plane forces");
     if (!plane_forces) return std::move(plane_forces).error();
     catheter.plane_forces_n_ = plane_forces.value();
   }
-  catheter.reset();
   return catheter;
 }
 
@@ -162,8 +144,7 @@ core::Status Catheter::release(std::uint32_t particle) noexcept {
 }
 
 float Catheter::max_contact_stiffness_n_per_m() const noexcept {
-  const float substep_s = stable_substep_s_;
-  return mass_kg_ / (substep_s * substep_s);
+  return contact_stiffness_limit_n_per_m(mass_kg_, stable_substep_s_);
 }
 
 core::Status Catheter::set_contact_planes(std::span<const ContactPlane> planes) noexcept {
@@ -200,12 +181,12 @@ core::Status Catheter::set_contact_planes(std::span<const ContactPlane> planes) 
 void Catheter::clamp_start(bool clamped) noexcept {
   stiffness_.root_clamped = clamped;
   held_[0] = clamped ? 1 : 0;
-  hold_targets_m_[0] = start_m_;
+  hold_targets_m_[0] = rest_positions_[0];
 }
 
 void Catheter::reset() noexcept {
   for (std::uint32_t i = 0; i < count_; ++i) {
-    positions_[i] = start_m_ + (static_cast<float>(i) * stiffness_.rest_length_m) * direction_;
+    positions_[i] = rest_positions_[i];
     velocities_[i].setZero();
     external_n_[i].setZero();
     hold_targets_m_[i].setZero();
@@ -255,7 +236,9 @@ bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
 }
 
 core::Status Catheter::step(float period_s) noexcept {
-  if (!positive_finite(period_s)) return {core::StatusCode::invalid_argument, "catheter: period must be > 0"};
+  if (!catheter_positive_finite(period_s)) {
+    return {core::StatusCode::invalid_argument, "catheter: period must be > 0"};
+  }
   const std::uint64_t substeps =
       substeps_for(static_cast<double>(period_s), static_cast<double>(stable_substep_s_));
   if (substeps > max_substeps_) {

@@ -15,21 +15,25 @@ namespace {
 // clang-format off
 constexpr std::uint32_t kModal = owner_bit(ModelKind::modal_shell);
 constexpr std::uint32_t kTensor = owner_bit(ModelKind::tet_tensor);
-constexpr std::uint32_t kBoth = kModal | kTensor;
+constexpr std::uint32_t kCatheter = owner_bit(ModelKind::catheter);
+constexpr std::uint32_t kBoth = kModal | kTensor;  // the two mesh kinds
+constexpr std::uint32_t kEvery = kBoth | kCatheter;
 
-constexpr std::array<SectionDescriptor, 12> kSectionDescriptors = {{
-  {SectionId::metadata,            "metadata",            ElementType::u8,  kBoth,   1},
-  {SectionId::rest_positions,      "rest_positions",      ElementType::f32, kBoth,   3},
-  {SectionId::triangles,           "triangles",           ElementType::u32, kBoth,   3},
-  {SectionId::fixed_nodes,         "fixed_nodes",         ElementType::u32, kBoth,   1},
-  {SectionId::surface_nodes,       "surface_nodes",       ElementType::u32, kBoth,   1},
-  {SectionId::mode_shapes,         "mode_shapes",         ElementType::f32, kModal,  0},
-  {SectionId::omega_squared,       "omega_squared",       ElementType::f32, kModal,  1},
-  {SectionId::modal_damping,       "modal_damping",       ElementType::f32, kModal,  1},
-  {SectionId::residual_compliance, "residual_compliance", ElementType::f32, kModal,  0},
-  {SectionId::tensor_displacement, "tensor_displacement", ElementType::f32, kTensor, 9},
-  {SectionId::tensor_force,        "tensor_force",        ElementType::f32, kTensor, 9},
-  {SectionId::tensor_nodes,        "tensor_nodes",        ElementType::u32, kTensor, 1},
+constexpr std::array<SectionDescriptor, 14> kSectionDescriptors = {{
+  {SectionId::metadata,                "metadata",                ElementType::u8,  kEvery,    1},
+  {SectionId::rest_positions,          "rest_positions",          ElementType::f32, kBoth,     3},
+  {SectionId::triangles,               "triangles",               ElementType::u32, kBoth,     3},
+  {SectionId::fixed_nodes,             "fixed_nodes",             ElementType::u32, kBoth,     1},
+  {SectionId::surface_nodes,           "surface_nodes",           ElementType::u32, kBoth,     1},
+  {SectionId::mode_shapes,             "mode_shapes",             ElementType::f32, kModal,    0},
+  {SectionId::omega_squared,           "omega_squared",           ElementType::f32, kModal,    1},
+  {SectionId::modal_damping,           "modal_damping",           ElementType::f32, kModal,    1},
+  {SectionId::residual_compliance,     "residual_compliance",     ElementType::f32, kModal,    0},
+  {SectionId::tensor_displacement,     "tensor_displacement",     ElementType::f32, kTensor,   9},
+  {SectionId::tensor_force,            "tensor_force",            ElementType::f32, kTensor,   9},
+  {SectionId::tensor_nodes,            "tensor_nodes",            ElementType::u32, kTensor,   1},
+  {SectionId::catheter_parameters,     "catheter_parameters",     ElementType::u8,  kCatheter, 1},
+  {SectionId::catheter_rest_positions, "catheter_rest_positions", ElementType::f32, kCatheter, 3},
 }};
 // clang-format on
 
@@ -49,7 +53,8 @@ const char* section_name(SectionId id) noexcept {
 
 std::string owners_text(const SectionDescriptor& descriptor) {
   std::string text;
-  for (const ModelKind kind : {ModelKind::modal_shell, ModelKind::tet_tensor}) {
+  for (const ModelKind kind :
+       {ModelKind::modal_shell, ModelKind::tet_tensor, ModelKind::catheter}) {
     if (!section_belongs_to(descriptor, kind)) continue;
     if (!text.empty()) text.append(" and ");
     text.append(model_kind_name(kind));
@@ -61,6 +66,7 @@ const char* model_kind_name(ModelKind kind) noexcept {
   switch (kind) {
     case ModelKind::modal_shell: return "modal_shell";
     case ModelKind::tet_tensor: return "tet_tensor";
+    case ModelKind::catheter: return "catheter";
   }
   return "unknown";
 }
@@ -77,7 +83,8 @@ std::size_t element_type_bytes(std::uint32_t element_type) noexcept {
 
 bool is_known_model_kind(std::uint32_t kind) noexcept {
   return kind == static_cast<std::uint32_t>(ModelKind::modal_shell) ||
-         kind == static_cast<std::uint32_t>(ModelKind::tet_tensor);
+         kind == static_cast<std::uint32_t>(ModelKind::tet_tensor) ||
+         kind == static_cast<std::uint32_t>(ModelKind::catheter);
 }
 
 std::uint64_t compute_image_checksum(std::span<const std::byte> file) noexcept {

@@ -11,7 +11,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
@@ -20,42 +19,27 @@
 #include <system_error>
 #include <utility>
 
+#include "catheter_image_checks.hpp"
+#include "image_checks.hpp"
+
 namespace trainer::model {
 
 namespace {
 
 using core::Error;
 using core::Expected;
+using detail::image_error;
+using detail::number;
+using detail::read_record;
+using detail::require_rows;
+using detail::section_label;
 
 // ---- message helpers (error path only: these allocate) ----
-
-Error image_error(std::string_view label, const std::string& what) {
-  return core::make_error(std::string(label) + ": " + what);
-}
 
 std::string hex(std::uint64_t value) {
   char buffer[24];
   std::snprintf(buffer, sizeof buffer, "0x%" PRIx64, value);
   return buffer;
-}
-
-// Shortest text that reads back to the same value ("0.0005", not "0.000500000024"), so a
-// float in a message looks like the number that was written.
-template <class T>
-std::string number(T value) {
-  char buffer[64];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
-  return std::string(buffer, result.ptr);
-}
-
-std::string section_label(std::uint32_t id) {
-  const SectionDescriptor* descriptor = find_section_descriptor(id);
-  return descriptor != nullptr ? std::string("section '") + descriptor->name + "'"
-                               : "section id " + std::to_string(id);
-}
-
-std::string section_label(SectionId id) {
-  return section_label(static_cast<std::uint32_t>(id));
 }
 
 const char* element_type_name(std::uint32_t element_type) {
@@ -66,13 +50,6 @@ const char* element_type_name(std::uint32_t element_type) {
     case ElementType::u8: return "u8";
   }
   return "unknown";
-}
-
-template <class T>
-T read_record(const std::byte* source) noexcept {
-  T value;
-  std::memcpy(&value, source, sizeof value);
-  return value;
 }
 
 template <class T>
@@ -115,7 +92,7 @@ Expected<void> validate_header(const ImageHeaderV1& header, std::uint64_t actual
   }
   if (!is_known_model_kind(header.model_kind)) {
     return image_error(label, "model_kind " + std::to_string(header.model_kind) +
-                                  " is unknown (1 = modal_shell, 2 = tet_tensor)");
+                                  " is unknown (1 = modal_shell, 2 = tet_tensor, 3 = catheter)");
   }
   if (header.model_kind != static_cast<std::uint32_t>(expected_kind)) {
     return image_error(label, std::string("model_kind is ") +
@@ -409,15 +386,6 @@ Expected<void> check_finite(const SectionView& view, std::string_view label) {
 }
 
 // ---- modal shell consistency ----
-
-Expected<void> require_rows(const ModelImage& image, SectionId id, std::uint64_t rows,
-                            const char* meaning, std::string_view label) {
-  if (image.rows(id) != rows) {
-    return image_error(label, section_label(id) + " has " + std::to_string(image.rows(id)) +
-                                  " rows, expected " + std::to_string(rows) + " (" + meaning + ")");
-  }
-  return {};
-}
 
 // A node list must be strictly increasing (so it has no duplicates and can be bisected) and
 // name existing nodes.
@@ -829,11 +797,13 @@ core::Expected<ModelImage> parse_model_image(std::span<const std::byte> file,
   for (const SectionView& view : image.sections()) {
     if (auto ok = check_finite(view, file_label); !ok) return std::move(ok).error();
   }
-  if (expected_kind == ModelKind::modal_shell) {
-    if (auto ok = check_modal_shell(image, file_label); !ok) return std::move(ok).error();
-  } else {
-    if (auto ok = check_tet_tensor(image, file_label); !ok) return std::move(ok).error();
+  Expected<void> consistent;
+  switch (expected_kind) {
+    case ModelKind::modal_shell: consistent = check_modal_shell(image, file_label); break;
+    case ModelKind::tet_tensor: consistent = check_tet_tensor(image, file_label); break;
+    case ModelKind::catheter: consistent = detail::check_catheter_image(image, file_label); break;
   }
+  if (!consistent) return std::move(consistent).error();
   return image;
 }
 

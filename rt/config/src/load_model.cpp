@@ -252,8 +252,9 @@ core::Expected<ModelDefinition> load_model_definition(const std::filesystem::pat
     return errors.error();
   }
   model.kind = static_cast<ModelKind>(*kind);
+  model.image_path = header.required_file("image", false);
+  header.finish();
   if (model.kind == ModelKind::catheter) {
-    header.finish();  // no image: a catheter has nothing to precompute
     TableReader catheter = root.required_table("catheter");
     read_catheter(catheter, model.catheter);
     TableReader pose = root.required_table("pose");
@@ -265,9 +266,6 @@ core::Expected<ModelDefinition> load_model_definition(const std::filesystem::pat
     if (!errors.ok()) return errors.error();
     return model;
   }
-  model.image_path = header.required_file("image", false);
-  header.finish();
-
   if (model.kind == ModelKind::tet_tensor) {
     TableReader mesh = root.required_table("mesh");
     read_solid_mesh(mesh, model);

@@ -1,7 +1,8 @@
-// Shared fixtures for the model image tests: a small but complete modal-shell model, an
-// independent raw image builder (so loader checks can be exercised with images the writer
-// would refuse to produce), byte patching with an independently computed checksum, and
-// temporary files.
+// Shared fixtures for the model image tests: a small but complete model of each kind (modal
+// shell, tet tensor, catheter), an independent raw image builder (so loader checks can be
+// exercised with images the writer would refuse to produce), byte patching with an
+// independently computed checksum, the damage every image must survive (each header field
+// broken, a byte flipped in each section), and temporary files.
 #pragma once
 
 #include <xxhash.h>
@@ -12,8 +13,10 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -23,6 +26,7 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/model/image_format.hpp"
 #include "trainer/model/image_loader.hpp"
+#include "trainer/model_offline/catheter_image.hpp"
 #include "trainer/model_offline/image_writer.hpp"
 
 namespace trainer::model::test {
@@ -189,6 +193,57 @@ struct SmallTetTensor {
     metadata.node_count = 4;
     metadata.surface_node_count = 1;
   }
+
+  std::vector<std::byte> bytes() const {
+    offline::ImageWriter writer(ModelKind::tet_tensor);
+    writer.set_metadata(metadata);
+    SmallModalShell::expect_ok(writer.add_f32(SectionId::rest_positions, rest_positions_m));
+    SmallModalShell::expect_ok(writer.add_u32(SectionId::triangles, triangles));
+    SmallModalShell::expect_ok(writer.add_u32(SectionId::fixed_nodes, fixed_nodes, 1, 1));
+    SmallModalShell::expect_ok(writer.add_u32(SectionId::surface_nodes, contact_nodes, 1, 1));
+    SmallModalShell::expect_ok(writer.add_u32(SectionId::tensor_nodes, stored_nodes, 3, 1));
+    SmallModalShell::expect_ok(
+        writer.add_f32(SectionId::tensor_displacement, displacement_tensors));
+    SmallModalShell::expect_ok(writer.add_f32(SectionId::tensor_force, force_tensor, 1, 9));
+    auto serialized = writer.serialize();
+    EXPECT_TRUE(serialized) << serialized.error().message;
+    return serialized ? serialized.value() : std::vector<std::byte>{};
+  }
+};
+
+// A 5-particle catheter (6 cm of the default polymer catheter), placed off the axes along
+// (0, 0.6, 0.8), clamped at its start, with gravity and every contact setting distinct.
+struct SmallCatheter {
+  static constexpr std::uint32_t kParticleCount = 5;
+  offline::CatheterImageInputs inputs;
+
+  SmallCatheter() {
+    inputs.params.length_m = 0.06F;
+    inputs.params.outer_radius_m = 1e-3F;
+    inputs.params.bending_stiffness_n_m2 = 3.9e-5F;
+    inputs.params.axial_stiffness_n = 157.0F;
+    inputs.params.linear_density_kg_per_m = 1.65e-3F;
+    inputs.params.damping_n_s_per_m = 5e-4F;
+    inputs.params.particle_count = kParticleCount;
+    inputs.start_m = Eigen::Vector3f(0.01F, -0.02F, 0.03F);
+    inputs.direction = Eigen::Vector3f(0.0F, 3.0F, 4.0F);
+    inputs.max_substeps = 64;
+    inputs.hold_start = true;
+    inputs.gravity_m_per_s2 = Eigen::Vector3f(0.0F, 0.0F, -9.81F);
+    inputs.contact = {500.0F, 0.02F, 300.0F, 3000.0F, 0.6F, 4.0F};
+  }
+
+  CatheterParametersV1 record() const {
+    auto made = offline::make_catheter_record(inputs);
+    EXPECT_TRUE(made) << made.error().message;
+    return made ? made.value() : CatheterParametersV1{};
+  }
+
+  std::vector<std::byte> bytes() const {
+    auto serialized = offline::serialize_catheter_image(inputs);
+    EXPECT_TRUE(serialized) << serialized.error().message;
+    return serialized ? serialized.value() : std::vector<std::byte>{};
+  }
 };
 
 // ---- independent raw image builder ----
@@ -261,6 +316,95 @@ inline std::vector<std::byte> build_raw_image(ModelKind kind,
   }
   recompute_checksum(bytes);
   return bytes;
+}
+
+// ---- damage every image must survive ----
+
+// One header field set to a value the loader must refuse, with a fragment of the refusal.
+struct HeaderMutation {
+  std::string field;
+  std::function<void(std::vector<std::byte>&)> patch;
+  std::string fragment;
+  bool recompute_checksum = true;  // so the field's own check fires, not the checksum's
+};
+
+// Every field of the 128-byte header of a `file_bytes`-long image of `kind`, broken on its
+// own: magic, format_version (older and newer), header_bytes, byte_order_mark (big-endian and
+// garbage), model_kind (another known kind and an unknown one), file_bytes, section_count (0
+// and above the maximum), section_table_offset, the checksum itself, a reserved byte.
+inline std::vector<HeaderMutation> header_mutations(ModelKind kind, std::size_t file_bytes) {
+  const auto set_u32 = [](std::size_t offset, std::uint32_t value) {
+    return [offset, value](std::vector<std::byte>& bytes) {
+      put<std::uint32_t>(bytes, offset, value);
+    };
+  };
+  const ModelKind other =
+      kind == ModelKind::modal_shell ? ModelKind::catheter : ModelKind::modal_shell;
+  std::vector<HeaderMutation> mutations = {
+      {"magic", [](std::vector<std::byte>& bytes) { std::memcpy(bytes.data(), "HTRMODEM", 8); },
+       "not \"HTRMODEL\": not a model image"},
+      {"format_version", set_u32(offsetof(ImageHeaderV1, format_version), 0),
+       "image format version 0, this build reads 1: rebuild it with modelc"},
+      {"format_version", set_u32(offsetof(ImageHeaderV1, format_version), 2),
+       "image format version 2, this build reads 1: rebuild it with modelc"},
+      {"header_bytes", set_u32(offsetof(ImageHeaderV1, header_bytes), 256),
+       "header_bytes is 256, format version 1 has 128"},
+      {"byte_order_mark", set_u32(offsetof(ImageHeaderV1, byte_order_mark), 0x04030201U),
+       "the image was written big-endian"},
+      {"byte_order_mark", set_u32(offsetof(ImageHeaderV1, byte_order_mark), 0xDEADBEEFU),
+       "not a valid byte order mark"},
+      {"model_kind",
+       set_u32(offsetof(ImageHeaderV1, model_kind), static_cast<std::uint32_t>(other)),
+       std::string("model_kind is ") + model_kind_name(other) + ", the scene expects " +
+           model_kind_name(kind)},
+      {"model_kind", set_u32(offsetof(ImageHeaderV1, model_kind), 7), "model_kind 7 is unknown"},
+      {"file_bytes",
+       [file_bytes](std::vector<std::byte>& bytes) {
+         put<std::uint64_t>(bytes, offsetof(ImageHeaderV1, file_bytes), file_bytes - 64);
+       },
+       "header file_bytes is " + std::to_string(file_bytes - 64) + " but the file is " +
+           std::to_string(file_bytes) + " bytes"},
+      {"section_count", set_u32(offsetof(ImageHeaderV1, section_count), 0), "section_count is 0"},
+      {"section_count", set_u32(offsetof(ImageHeaderV1, section_count), 33),
+       "section_count 33 exceeds the format maximum of 32"},
+      {"section_table_offset", set_u32(offsetof(ImageHeaderV1, section_table_offset), 192),
+       "section_table_offset is 192"},
+      {"checksum",
+       [](std::vector<std::byte>& bytes) {
+         put<std::uint64_t>(bytes, kImageChecksumOffset,
+                            get<std::uint64_t>(bytes, kImageChecksumOffset) + 1);
+       },
+       "checksum mismatch: header says 0x", false},
+      {"reserved",
+       [](std::vector<std::byte>& bytes) {
+         bytes[offsetof(ImageHeaderV1, reserved) + 7] = std::byte{1};
+       },
+       "header reserved byte " + std::to_string(offsetof(ImageHeaderV1, reserved) + 7) +
+           " is not zero"},
+  };
+  return mutations;
+}
+
+// The image with `mutation` applied (and the checksum recomputed unless it is the mutation).
+inline std::vector<std::byte> mutated(std::vector<std::byte> bytes,
+                                      const HeaderMutation& mutation) {
+  mutation.patch(bytes);
+  if (mutation.recompute_checksum) recompute_checksum(bytes);
+  return bytes;
+}
+
+// Every non-empty section of an image: its id and the position of the byte in its middle.
+inline std::vector<std::pair<SectionId, std::size_t>> section_middle_bytes(
+    const std::vector<std::byte>& bytes) {
+  std::vector<std::pair<SectionId, std::size_t>> middles;
+  const auto count = get<std::uint32_t>(bytes, offsetof(ImageHeaderV1, section_count));
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const auto entry =
+        get<SectionEntryV1>(bytes, kImageHeaderBytes + std::size_t{i} * kImageSectionEntryBytes);
+    const std::size_t size = entry.element_count * element_type_bytes(entry.element_type);
+    if (size > 0) middles.emplace_back(static_cast<SectionId>(entry.id), entry.offset + size / 2);
+  }
+  return middles;
 }
 
 // ---- files ----

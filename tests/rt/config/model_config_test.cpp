@@ -121,7 +121,9 @@ TEST(ModelDefinition, RepositoryCatheterLoads) {
   ASSERT_TRUE(model) << model.error().message;
   EXPECT_EQ(model->name, "catheter");
   EXPECT_EQ(model->kind, ModelKind::catheter);
-  EXPECT_TRUE(model->image_path.empty());  // nothing to precompute
+  EXPECT_TRUE(model->image_path.is_absolute());  // where modelc writes the chain's image
+  EXPECT_EQ(model->image_path.filename(), "catheter.img");
+  EXPECT_EQ(model->image_path.parent_path().filename(), "models");
   const CatheterConfig& c = model->catheter;
   EXPECT_DOUBLE_EQ(c.length_m, 0.3);
   EXPECT_DOUBLE_EQ(c.outer_radius_m, 0.0008);
@@ -202,9 +204,10 @@ TEST_F(CatheterDefinition, UnknownAndMissingKeysAreRefused) {
   expect_contains(m, "catheter.toml:" + std::to_string(line) + ": unknown key 'catheter.lenght_m'");
   expect_contains(m, "did you mean 'length_m'?");
 
-  // A catheter has no image: the key of the other kind is unknown, as is a [mesh] table.
-  m = message_for("kind = \"catheter\"", "kind = \"catheter\"\nimage = \"x.img\"", &line);
-  expect_contains(m, "catheter.toml:" + std::to_string(line + 1) + ": unknown key 'model.image'");
+  // A catheter has an image like every model (modelc writes it), but no mesh: a [mesh] table is
+  // an unknown key.
+  m = message_for("image = \"../../out/models/catheter.img\"", "", &line);
+  expect_contains(m, "catheter.toml: missing required key 'model.image'");
   m = message_for("[pose]", "[mesh]\nrings = 3\n[pose]", &line);
   expect_contains(m, "catheter.toml:" + std::to_string(line) + ": unknown key 'mesh'");
 

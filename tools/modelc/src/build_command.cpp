@@ -18,6 +18,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "build_report.hpp"
+#include "catheter_build.hpp"
 #include "model_spec.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/model_offline/modal_accuracy.hpp"
@@ -134,24 +136,20 @@ nlohmann::json build_tensor_model(const std::string& name,
                       {"tensor_solve_us", a.tensor_solve_us},
                       {"direct_solve_s", a.direct_solve_s}});
   }
-  return {{"name", name},
-          {"definition", definition.source_path.string()},
-          {"kind", "tet_tensor"},
-          {"built", true},
-          {"image", definition.image_path.string()},
-          {"image_bytes", image_bytes},
-          {"node_count", mesh.nodes.rows()},
-          {"tetrahedron_count", mesh.tetrahedra.rows()},
-          {"free_dofs", assembled.dofs.free_count},
-          {"contact_node_count", tensors.contact_nodes.size()},
-          {"stored_node_count", tensors.response_nodes.size()},
-          {"self_tensor_error", tensors.self_tensor_error},
-          {"timings_s",
-           {{"assembly", assembly_s},
-            {"factorization", solver.factorization_time_s()},
-            {"tensors", tensors.solve_time_s},
-            {"total", total_s}}},
-          {"agreement_with_direct_solve", checks}};
+  nlohmann::json entry = built_image_entry(name, definition, "tet_tensor");
+  entry.update({{"node_count", mesh.nodes.rows()},
+                {"tetrahedron_count", mesh.tetrahedra.rows()},
+                {"free_dofs", assembled.dofs.free_count},
+                {"contact_node_count", tensors.contact_nodes.size()},
+                {"stored_node_count", tensors.response_nodes.size()},
+                {"self_tensor_error", tensors.self_tensor_error},
+                {"timings_s",
+                 {{"assembly", assembly_s},
+                  {"factorization", solver.factorization_time_s()},
+                  {"tensors", tensors.solve_time_s},
+                  {"total", total_s}}},
+                {"agreement_with_direct_solve", checks}});
+  return entry;
 }
 
 struct BuildOptions {
@@ -246,13 +244,8 @@ void run_build(const BuildOptions& options) {
     if (!options.only.empty() && entry.name != options.only) continue;
     const config::ModelDefinition& definition = entry.definition;
     if (definition.kind == config::ModelKind::catheter) {
-      // The particle catheter is built by the trainer from its parameters at start.
-      std::cout << "model '" << entry.name << "': catheter, nothing to build ("
-                << definition.source_path.string() << ")\n";
-      report["models"].push_back({{"name", entry.name},
-                                  {"definition", definition.source_path.string()},
-                                  {"kind", "catheter"},
-                                  {"built", false}});
+      const double loop_period_s = static_cast<double>(scene.loop.period_ns) * 1e-9;
+      report["models"].push_back(build_catheter_model(entry.name, definition, loop_period_s));
       continue;
     }
     if (definition.kind == config::ModelKind::tet_tensor) {
@@ -293,11 +286,8 @@ void run_build(const BuildOptions& options) {
               << ", residual " << fixed(built.timings.residual_s, 3) << ", error estimate "
               << fixed(built.timings.error_estimate_s, 3) << ")\n  image "
               << definition.image_path.string() << " (" << image_bytes << " bytes)\n";
-    report["models"].push_back({
-        {"name", entry.name},
-        {"definition", definition.source_path.string()},
-        {"image", definition.image_path.string()},
-        {"image_bytes", image_bytes},
+    nlohmann::json built_entry = built_image_entry(entry.name, definition, "modal_shell");
+    built_entry.update({
         {"node_count", spec.mesh.nodes.rows()},
         {"triangle_count", spec.mesh.triangles.rows()},
         {"free_dofs", built.shell.dofs.free_count()},
@@ -318,7 +308,8 @@ void run_build(const BuildOptions& options) {
           {"error_estimate", built.timings.error_estimate_s},
           {"total", built.timings.total_s}}},
     });
-    if (budget_record) report["models"].back()["error_budget"] = budget_json;
+    if (budget_record) built_entry["error_budget"] = budget_json;
+    report["models"].push_back(std::move(built_entry));
   }
   write_json(options.report_path, report);
 }

@@ -98,4 +98,32 @@ core::Expected<std::vector<offline::TetNodeFix>> tet_fixes_from(
   return fixes;
 }
 
+offline::CatheterImageInputs catheter_inputs_from(const config::ModelDefinition& definition) {
+  const config::CatheterConfig& c = definition.catheter;
+  const auto f = [](double value) { return static_cast<float>(value); };
+  const auto vector = [&f](const config::Vec3& v) {
+    return Eigen::Vector3f(f(v[0]), f(v[1]), f(v[2]));
+  };
+  offline::CatheterImageInputs inputs;
+  inputs.params = {.length_m = f(c.length_m),
+                   .outer_radius_m = f(c.outer_radius_m),
+                   .bending_stiffness_n_m2 = f(c.bending_stiffness_n_m2),
+                   .axial_stiffness_n = f(c.axial_stiffness_n),
+                   .linear_density_kg_per_m = f(c.linear_density_kg_per_m),
+                   .damping_n_s_per_m = f(c.damping_n_s_per_m),
+                   .particle_count = c.particle_count};
+  inputs.start_m = vector(c.start_m);
+  inputs.direction = vector(c.direction);
+  inputs.max_substeps = c.max_substeps;
+  inputs.hold_start = c.hold_start;
+  inputs.gravity_m_per_s2 = vector(c.gravity_m_per_s2);
+  inputs.contact = {.wall_stiffness_n_per_m = f(c.wall_stiffness_n_per_m),
+                    .wall_damping_n_s_per_m = f(c.wall_damping_n_s_per_m),
+                    .tool_stiffness_n_per_m = f(c.tool_stiffness_n_per_m),
+                    .grasp_stiffness_n_per_m = f(c.grasp_stiffness_n_per_m),
+                    .grasp_friction = f(c.grasp_friction),
+                    .max_contact_force_n = f(c.max_contact_force_n)};
+  return inputs;
+}
+
 }  // namespace trainer::tools::modelc

@@ -49,19 +49,9 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/core/status.hpp"
+#include "trainer/model/catheter_chain.hpp"  // CatheterParams, CatheterChain, CatheterModelData
 
 namespace trainer::model {
-
-// Physical description of the catheter (SI).
-struct CatheterParams {
-  float length_m = 0.0F;
-  float outer_radius_m = 0.0F;               // sphere of influence per particle (contact)
-  float bending_stiffness_n_m2 = 0.0F;       // EI
-  float axial_stiffness_n = 0.0F;            // EA
-  float linear_density_kg_per_m = 0.0F;      // ρ_l
-  float damping_n_s_per_m = 0.0F;            // b per particle, ≥ 0
-  std::uint32_t particle_count = 0;          // N, 3..kMaxParticles
-};
 
 // Rest placement and the cycle budget.
 struct CatheterSetup {
@@ -219,14 +209,23 @@ Scalar chain_energy(std::span<const Eigen::Matrix<Scalar, 3, 1>> positions_m,
 class Catheter {
  public:
   using Vec3 = Eigen::Vector3f;
-  static constexpr std::uint32_t kMaxParticles = 256;
+  static constexpr std::uint32_t kMaxParticles = kMaxCatheterParticles;
 
   // Setup path: validates every parameter, computes the spring constants and the stable
-  // substep, refuses a catheter whose haptic period needs more than setup.max_substeps
-  // substeps (the error names the parameters and the required count), and carves the state
-  // from `arena`. Rest shape: straight from start_position_m along direction.
+  // substep (derive_catheter_chain), refuses a catheter whose haptic period needs more than
+  // setup.max_substeps substeps (the error names the parameters and the required count), and
+  // carves the state from `arena`. Rest shape: straight from start_position_m along direction
+  // (place_catheter_rest).
   static core::Expected<Catheter> create(const CatheterParams& params, const CatheterSetup& setup,
                                          core::Arena& arena);
+  // The same from a catheter image's data (catheter_model_data(), catheter_image.hpp): the
+  // chain constants, stable substep, budget, rest positions and rest direction as modelc
+  // stored them, nothing recomputed. The substep count of haptic_period_s (a scene setting, not
+  // in the image) is computed here and refused beyond data.max_substeps, as above. A catheter
+  // created from the image of a definition behaves bit for bit like one created from the same
+  // definition's parameters. hold_start, gravity and contact settings are the caller's.
+  static core::Expected<Catheter> create(const CatheterModelData& data, float haptic_period_s,
+                                         std::uint32_t max_contact_planes, core::Arena& arena);
 
   // ---- RT path: noexcept, no heap ----
 
@@ -285,6 +284,12 @@ class Catheter {
 
   void reset() noexcept;  // rest shape, zero velocity, forces and holds cleared, clamp off
 
+  std::span<const Vec3> rest_positions_m() const noexcept {
+    return {rest_positions_.data(), count_};
+  }
+  const Vec3& rest_direction() const noexcept { return direction_; }  // unit
+  std::uint32_t max_substeps() const noexcept { return max_substeps_; }
+
   std::span<const Vec3> positions_m() const noexcept { return {positions_.data(), count_}; }
   std::span<const Vec3> velocities_m_per_s() const noexcept { return {velocities_.data(), count_}; }
   double kinetic_energy_j() const noexcept;
@@ -297,10 +302,19 @@ class Catheter {
   const ChainStiffness<float>& stiffness() const noexcept { return stiffness_; }
 
   // ceil(period / substep) for a positive substep (exposed for tests and config checks).
-  static std::uint64_t substeps_for(double period_s, double substep_s) noexcept;
+  static std::uint64_t substeps_for(double period_s, double substep_s) noexcept {
+    return catheter_substeps_for(period_s, substep_s);
+  }
 
  private:
   Catheter() = default;
+  // What both create()s share: counts the substeps of the period (refusing beyond the budget)
+  // and carves every array from the arena. The rest positions are left for the caller to fill
+  // before reset().
+  static core::Expected<Catheter> allocate(const CatheterParams& params,
+                                           const CatheterChain& chain, const Vec3& rest_direction,
+                                           float haptic_period_s, std::uint32_t max_substeps,
+                                           std::uint32_t max_contact_planes, core::Arena& arena);
   // false if the state became non-finite. `fraction` is this substep's share of the step
   // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
   bool substep(float dt_s, float fraction, float hold_step) noexcept;
@@ -316,9 +330,9 @@ class Catheter {
   std::uint32_t substeps_per_period_ = 0;
   std::uint32_t max_substeps_ = 0;
   ChainStiffness<float> stiffness_{};
-  Vec3 start_m_ = Vec3::Zero();
-  Vec3 direction_ = Vec3::UnitX();
+  Vec3 direction_ = Vec3::UnitX();  // unit rest tangent (the clamped root's)
 
+  std::span<Vec3> rest_positions_;   // the rest shape reset() returns to; [0] is the clamp point
   std::span<Vec3> positions_;
   std::span<Vec3> velocities_;
   std::span<Vec3> forces_;           // scratch per substep

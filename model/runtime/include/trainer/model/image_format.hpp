@@ -1,8 +1,8 @@
 // The model image format, version 1: the on-disk layout shared by the offline writer
 // (trainer::model::offline::ImageWriter) and the runtime loader (load_model_image). Owns the
 // magic, version, header and section-table records, the section ids with their element types,
-// the metadata record and the checksum definition. docs/model-image.md is the prose spec;
-// this header is its single source of truth in code.
+// the metadata record, the catheter's parameter record and the checksum definition.
+// docs/model-image.md is the prose spec; this header is its single source of truth in code.
 //
 // Layout: [128-byte header][section table: section_count × 32 bytes][sections, each starting
 // at a multiple of 64 bytes, zero padding between]. All integers and floats little-endian;
@@ -34,6 +34,7 @@ inline constexpr std::uint32_t kImageSectionAlignment = 64;
 enum class ModelKind : std::uint32_t {
   modal_shell = 1,  // reduced-modal shell FEM (the duct), METHODS.md §1
   tet_tensor = 2,   // precomputed tetrahedral tensor model (the liver), METHODS.md §3
+  catheter = 3,     // particle catheter (chain of springs), METHODS.md §2, docs/catheter.md
 };
 
 // Scalar type of a section's elements.
@@ -76,6 +77,10 @@ enum class SectionId : std::uint32_t {
                              // node k per unit displacement imposed there
   tensor_nodes = 32,         // u32, r × 1, strictly increasing: the nodes whose response is stored
                              // (the boundary, or every node); contains every surface node
+
+  // Particle catheter (50-69). Only these two and the metadata.
+  catheter_parameters = 50,      // u8, exactly sizeof(CatheterParametersV1) bytes: the record
+  catheter_rest_positions = 51,  // f32, N × 3, m: particle i at rest, trainer frame
 };
 
 // The fixed 128-byte header at offset 0. Plain little-endian record, read with memcpy.
@@ -145,13 +150,56 @@ static_assert(offsetof(ImageMetadataV1, created_unix_s) == 96);
 static_assert(offsetof(ImageMetadataV1, tool_version) == 104);
 static_assert(offsetof(ImageMetadataV1, reserved) == 136);
 
+// Content of SectionId::catheter_parameters: everything model::Catheter needs besides its
+// rest positions, in the precision the runtime stores it (float), so the trainer runs exactly
+// the constants modelc derived (model::derive_catheter_chain, docs/catheter.md). The record has
+// its own version, checked before anything else in it: a change to this record is a new
+// record_version (the container's format_version stays), and a loader refuses every version
+// but its own. Reserved bytes must be zero.
+inline constexpr std::uint32_t kCatheterRecordVersion = 1;
+struct CatheterParametersV1 {
+  std::uint32_t record_version;  // kCatheterRecordVersion
+  std::uint32_t particle_count;  // N, 3..Catheter::kMaxParticles
+  std::uint32_t max_substeps;    // substep budget of one haptic period, 1..kMaxCatheterSubsteps
+  std::uint32_t hold_start;      // 1 = clamped start (particle 0 and root tangent held), 0 = free
+  // The chain (model::CatheterChain).
+  float rest_length_m;                  // l0 = L/(N−1)
+  float particle_mass_kg;               // m = ρ_l L / N
+  float axial_stiffness_n_per_m;        // k_s = EA / l0
+  float bending_stiffness_n_m_per_rad;  // k_b = EI / l0
+  float radius_m;                       // outer radius: each particle's sphere in contact
+  float damping_n_s_per_m;              // b per particle, >= 0
+  float stable_substep_s;               // largest stable substep (the period is the scene's)
+  // Placement (the definition's [pose]).
+  float rest_direction[3];   // unit rest tangent: the clamped root's hinge direction
+  float gravity_m_per_s2[3];  // applied by the trainer as m·g on every particle
+  // The physical parameters the chain was derived from (provenance and messages).
+  float length_m;                 // L
+  float bending_stiffness_n_m2;   // EI
+  float axial_stiffness_n;        // EA
+  float linear_density_kg_per_m;  // ρ_l
+  // The definition's [contact]: the catheter against walls and forceps (used by the trainer).
+  float wall_stiffness_n_per_m;
+  float wall_damping_n_s_per_m;
+  float tool_stiffness_n_per_m;
+  float grasp_stiffness_n_per_m;
+  float grasp_friction;
+  float max_contact_force_n;
+  std::uint8_t reserved[20];  // zero
+};
+static_assert(sizeof(CatheterParametersV1) == 128);
+static_assert(offsetof(CatheterParametersV1, rest_length_m) == 16);  // the groups' starts
+static_assert(offsetof(CatheterParametersV1, rest_direction) == 44);
+static_assert(offsetof(CatheterParametersV1, length_m) == 68);
+static_assert(offsetof(CatheterParametersV1, reserved) == 108);
+
 // What the format says about one section id.
 struct SectionDescriptor {
   SectionId id;
   const char* name;          // snake_case, used in every message
   ElementType element_type;  // the only element type allowed for this id
   // Model kinds the section may appear in: bit (1 << kind) per kind (owner_bit()). The
-  // metadata belongs to every kind; geometry and node lists are shared by both kinds.
+  // metadata belongs to every kind; geometry and node lists are shared by the two mesh kinds.
   std::uint32_t owners;
   // Column count the id fixes (lists have 1, positions and triangles 3); 0 = set by the model.
   std::uint32_t required_cols;

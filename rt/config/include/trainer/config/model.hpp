@@ -1,7 +1,7 @@
-// Model definition files (config/models/*.toml): how a soft-tissue model is built offline by
-// `modelc` (mesh, material, element, boundary conditions, modal settings) and where its image
-// goes, or, for a catheter, its physical parameters and placement (no image: nothing is
-// precomputed). A scene names the models it uses with [[model]] entries; the trainer loads
+// Model definition files (config/models/*.toml): how a model is built offline by `modelc` —
+// for a soft-tissue model its mesh, material, element, boundary conditions and modal or tensor
+// settings, for a catheter its physical parameters, placement and contact settings — and where
+// its image goes. A scene names the models it uses with [[model]] entries; the trainer loads
 // only those. Every key, unit, range and default: docs/config.md.
 #pragma once
 
@@ -116,7 +116,7 @@ struct ModelDefinition {
   std::filesystem::path source_path;  // absolute
   std::string name;
   ModelKind kind = ModelKind::modal_shell;
-  std::filesystem::path image_path;   // modal_shell: absolute; where modelc writes it, the trainer reads it
+  std::filesystem::path image_path;   // absolute; where modelc writes the image, the trainer reads it
   MeshSource mesh_source = MeshSource::tube;
   TubeMeshConfig tube;
   BoxMeshConfig box;
@@ -127,7 +127,7 @@ struct ModelDefinition {
   std::vector<DofFixConfig> fixes;
   ModalConfig modal;
   TensorConfig tensor;
-  CatheterConfig catheter;            // kind == catheter only (the fields above stay default)
+  CatheterConfig catheter;            // kind == catheter only (the mesh fields above stay default)
 };
 
 core::Expected<ModelDefinition> load_model_definition(const std::filesystem::path& file);
