@@ -19,6 +19,9 @@ test -s "$work/trade/cbd/duct.png" || { echo "no plot"; cat "$work/trade.txt"; e
 
 "$modelc" build --scene "$scene" --only duct --error-budget 10 --report "$work/build.json" \
   >"$work/build.txt" 2>&1 || { echo "modelc failed"; cat "$work/build.txt"; exit 1; }
+# The scene's catheter image too (the trainer runs every model from its image).
+"$modelc" build --scene "$scene" --only catheter >"$work/catheter.txt" 2>&1 \
+  || { echo "modelc (catheter) failed"; cat "$work/catheter.txt"; exit 1; }
 "$trainer" --scene "$scene" --hal sim --time simulated --cycles 2000 --report "$work/run.json" \
   >"$work/run.txt" 2>&1 || { echo "trainer failed"; cat "$work/run.txt"; exit 1; }
 

@@ -30,7 +30,7 @@ using RowMatrixX3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 // solves differ without any work in the timed region.
 constexpr int kCostVariants = 16;
 
-std::string number(double value) {
+std::string tradeoff_number(double value) {
   char text[32];
   std::snprintf(text, sizeof text, "%.6g", value);
   return text;
@@ -76,17 +76,17 @@ core::Expected<void> check_scenario(const TensorProbeScenario& scenario) {
   };
   if (!scenario.surface_point_m.allFinite()) return refuse("surface point is not finite");
   if (!scenario.inward.allFinite() || std::abs(scenario.inward.norm() - 1.0) > 1e-6) {
-    return refuse("inward direction of norm " + number(scenario.inward.norm()) +
+    return refuse("inward direction of norm " + tradeoff_number(scenario.inward.norm()) +
                   ", expected a unit vector");
   }
   if (!(scenario.radius_m > 0.0) || !std::isfinite(scenario.radius_m)) {
-    return refuse("radius " + number(scenario.radius_m) + " m, expected finite and > 0");
+    return refuse("radius " + tradeoff_number(scenario.radius_m) + " m, expected finite and > 0");
   }
   if (scenario.depths_m.empty()) return refuse("no depths");
   for (const double depth : scenario.depths_m) {
     if (!(depth > 0.0 && depth < scenario.radius_m)) {
-      return refuse("depth " + number(depth) + " m, expected in (0, radius = " +
-                    number(scenario.radius_m) + " m)");
+      return refuse("depth " + tradeoff_number(depth) + " m, expected in (0, radius = " +
+                    tradeoff_number(scenario.radius_m) + " m)");
     }
   }
   return {};
@@ -177,7 +177,7 @@ core::Expected<std::vector<TensorProbeScenario>> default_tensor_scenarios(
   }
   if (top.size() < 2) {
     return core::make_error("tensor probe scenarios: " + std::to_string(top.size()) +
-                            " contact node(s) on the top face z = " + number(top_z) +
+                            " contact node(s) on the top face z = " + tradeoff_number(top_z) +
                             " m, expected at least 2 (the probes press the top face along -z)");
   }
   std::vector<double> spacing;
@@ -333,12 +333,12 @@ core::Expected<std::unique_ptr<TensorTradeStudy>> TensorTradeStudy::create(
           scenario.surface_point_m + (depth_m - scenario.radius_m) * scenario.inward;
       Press press = covered_press(mesh, study->contact_nodes_, centre, scenario.radius_m, depth_m);
       const auto where = [&] {
-        return "tensor trade study: scenario '" + scenario.name + "' at depth " + number(depth_m) +
+        return "tensor trade study: scenario '" + scenario.name + "' at depth " + tradeoff_number(depth_m) +
                " m";
       };
       if (press.nodes.empty()) {
         return core::make_error(where() + " covers no contact node (probe radius " +
-                                number(scenario.radius_m) +
+                                tradeoff_number(scenario.radius_m) +
                                 " m): move it onto a node, press deeper or use a larger probe");
       }
       press.contact_set.resize(press.nodes.size());
@@ -437,7 +437,7 @@ core::Expected<TensorTradePoint> TensorTradeStudy::measure(
                                   contacts);
       if (!solved) {
         return core::make_error("tensor trade study: scenario '" + scenario.name + "' at depth " +
-                                number(press.depth_m) + " m, " + config.label() + ": " +
+                                tradeoff_number(press.depth_m) + " m, " + config.label() + ": " +
                                 solved.error().message);
       }
       const Eigen::Vector3d& force = *solved;

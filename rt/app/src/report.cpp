@@ -153,14 +153,14 @@ nlohmann::json models_json(const RunResult& r) {
                             {"arena_bytes", m.arena_bytes},
                             {"position_m", m.position_m},
                             {"rotation_deg", m.rotation_deg}};
+    // Every kind is loaded from its image.
+    entry.update({{"image", m.image_path},
+                  {"image_checksum", m.image_checksum},
+                  {"image_bytes", m.image_bytes}});
     if (m.kind == config::ModelKind::catheter) {
       add_catheter_fields(m, r.app.catheters[catheter_index++], entry);
     } else {
-      // Image-backed kinds.
-      entry.update({{"image", m.image_path},
-                    {"image_checksum", m.image_checksum},
-                    {"image_bytes", m.image_bytes},
-                    {"node_count", m.node_count}});
+      entry["node_count"] = m.node_count;
       if (m.kind == config::ModelKind::tet_tensor) {
         add_tensor_fields(m, r.app.tensor_models[tensor_index++], entry);
       } else {
@@ -252,8 +252,8 @@ void summarize_catheter(const RunResult& r, const LoadedModelInfo& m, const Cath
   out << "  model '" << m.name << "': catheter, " << m.particle_count << " particles, stable step "
       << microseconds_of_seconds(m.stable_substep_s) << " us, " << m.substeps_per_period
       << " substeps per " << microseconds(r.period_ns) << " us period (budget " << m.max_substeps
-      << "), " << (m.hold_start ? "held at the introducer" : "free start") << ", arena "
-      << m.arena_bytes << " bytes\n";
+      << "), " << (m.hold_start ? "held at the introducer" : "free start") << ", image "
+      << m.image_bytes << " bytes, arena " << m.arena_bytes << " bytes\n";
 }
 
 void summarize_tensor(const LoadedModelInfo& m, const TensorModelStats& t, std::ostream& out) {

@@ -14,8 +14,10 @@
 #include <string>
 #include <string_view>
 
+#include "catheter_build.hpp"
 #include "trainer/app/report.hpp"
 #include "trainer/app/trainer_run.hpp"
+#include "trainer/config/model.hpp"
 #include "trainer/core/alloc_counter.hpp"
 
 namespace trainer::app {
@@ -129,12 +131,23 @@ class EditedCatheterScene : public ::testing::Test {
     std::error_code ignored;
     fs::remove_all(root_, ignored);
   }
-  // Writes the default catheter with one edit; returns the scene that names it.
+  // Writes the default catheter with one edit and its image beside it (built as `modelc
+  // build` does); returns the scene that names it.
   fs::path scene_with(std::string_view from, std::string_view to) const {
-    std::ofstream(root_ / "models/catheter.toml", std::ios::binary | std::ios::trunc)
-        << replaced(read_text(kRepo / "config/models/catheter.toml"), from, to);
+    write_definition(from, to);
+    auto definition = config::load_model_definition(root_ / "models/catheter.toml");
+    EXPECT_TRUE(definition) << definition.error().message;
+    if (definition) (void)tools::modelc::build_catheter_model("catheter", *definition, 1e-3);
     return root_ / "scenes/catheter.toml";
   }
+  // The definition alone (its image, if any, left as it is).
+  void write_definition(std::string_view from, std::string_view to) const {
+    std::string text = replaced(read_text(kRepo / "config/models/catheter.toml"), kRepoImage, kLocalImage);
+    std::ofstream(root_ / "models/catheter.toml", std::ios::binary | std::ios::trunc)
+        << replaced(text, from, to);
+  }
+  static constexpr std::string_view kRepoImage = "image = \"../../out/models/catheter.img\"";
+  static constexpr std::string_view kLocalImage = "image = \"catheter.img\"";
 
   fs::path root_;
 };
@@ -210,7 +223,8 @@ TEST_F(EditedCatheterScene, CatheterUnstableWithinItsBudgetIsRefusedBeforeArming
   ASSERT_FALSE(result);
   const std::string& message = result.error().message;
   EXPECT_NE(message.find((root_ / "scenes/catheter.toml").string()), std::string::npos) << message;
-  EXPECT_NE(message.find("model 'catheter' (" + (root_ / "models/catheter.toml").string() + ")"),
+  EXPECT_NE(message.find("model 'catheter' (" + (root_ / "models/catheter.img").string() +
+                         ", built from " + (root_ / "models/catheter.toml").string() + ")"),
             std::string::npos)
       << message;
   EXPECT_NE(message.find("needs 43 substeps"), std::string::npos) << message;
@@ -221,6 +235,45 @@ TEST_F(EditedCatheterScene, CatheterUnstableWithinItsBudgetIsRefusedBeforeArming
   ASSERT_FALSE(dense);
   EXPECT_NE(dense.error().message.find("needs 85 substeps"), std::string::npos)
       << dense.error().message;
+}
+
+// The trainer runs catheters from their images only: a missing image, one built from other
+// parameters than the scene's definition, and a damaged one are refused before arming, each
+// naming the file and what is wrong (and how to rebuild).
+TEST_F(EditedCatheterScene, MissingStaleOrDamagedImagesAreRefusedBeforeArming) {
+  const fs::path scene = scene_with(kNoGravity, kNoGravity);
+  const fs::path image = root_ / "models/catheter.img";
+  ASSERT_TRUE(fs::exists(image));
+  ASSERT_TRUE(run_trainer(simulated(scene, 5)));
+
+  // Stale: the definition edited after the image was built.
+  write_definition("axial_stiffness_n = 157.0", "axial_stiffness_n = 200.0");
+  auto stale = run_trainer(simulated(scene, 5));
+  ASSERT_FALSE(stale);
+  EXPECT_NE(stale.error().message.find(image.string()), std::string::npos) << stale.error().message;
+  EXPECT_NE(stale.error().message.find("[catheter] axial_stiffness_n = 200"), std::string::npos)
+      << stale.error().message;
+  EXPECT_NE(stale.error().message.find("out of date"), std::string::npos) << stale.error().message;
+  EXPECT_NE(stale.error().message.find("modelc build --scene"), std::string::npos) << stale.error().message;
+
+  // Damaged: one byte of the rest positions flipped (the checksum catches it).
+  write_definition(kNoGravity, kNoGravity);
+  std::string bytes = read_text(image);
+  ASSERT_GT(bytes.size(), 600U);
+  bytes[bytes.size() - 70] = static_cast<char>(bytes[bytes.size() - 70] ^ 0x10);
+  std::ofstream(image, std::ios::binary | std::ios::trunc) << bytes;
+  auto damaged = run_trainer(simulated(scene, 5));
+  ASSERT_FALSE(damaged);
+  EXPECT_NE(damaged.error().message.find(image.string()), std::string::npos) << damaged.error().message;
+  EXPECT_NE(damaged.error().message.find("checksum"), std::string::npos) << damaged.error().message;
+
+  // Missing.
+  fs::remove(image);
+  auto missing = run_trainer(simulated(scene, 5));
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.error().message.find(image.string()), std::string::npos) << missing.error().message;
+  EXPECT_NE(missing.error().message.find("build it with: modelc build --scene"), std::string::npos)
+      << missing.error().message;
 }
 
 }  // namespace

@@ -60,9 +60,9 @@ bool CatheterStage::add_wall_planes(std::size_t index, std::size_t& plane_count)
       plane.normal = wall.transform.vector_to_world(record.normal);
       plane.surface_velocity_m_per_s = Vec3::Zero();
       plane.reach_m = reach;
-      plane.stiffness_n_per_m = state.wall_stiffness_n_per_m;
-      plane.damping_n_s_per_m = state.wall_damping_n_s_per_m;
-      plane.max_force_n = state.max_contact_force_n;
+      plane.stiffness_n_per_m = state.contact.wall_stiffness_n_per_m;
+      plane.damping_n_s_per_m = state.contact.wall_damping_n_s_per_m;
+      plane.max_force_n = state.contact.max_contact_force_n;
     }
   }
   return ok;

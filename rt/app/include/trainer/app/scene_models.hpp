@@ -118,9 +118,7 @@ struct CatheterModelState {
   std::span<model::ContactPlane> planes;             // the step's planes: walls, then tools
   std::span<Eigen::Vector3f> model_frame_positions;  // scratch, one per particle
   std::span<Eigen::Vector3f> model_frame_velocities;
-  float wall_stiffness_n_per_m = 0.0F;
-  float wall_damping_n_s_per_m = 0.0F;
-  float max_contact_force_n = 0.0F;
+  model::CatheterContactSettings contact;  // the image's, for walls and tools
   // [model.insertion]: the lumen's entry, axis and radius, the depth to reach.
   bool has_goal = false;
   Eigen::Vector3f goal_entry_m = Eigen::Vector3f::Zero();
