@@ -166,37 +166,20 @@ BENCHMARK_CAPTURE(BM_SceneCycle, wall, std::string("config/scenes/wall.toml"))
     ->Iterations(3 * 10'000)
     ->Unit(benchmark::kMicrosecond);
 
-void BM_CbdStage(benchmark::State& state, app::CyclePhase stage) {
-  run_sessions(state, "config/scenes/cbd.toml", stage);
-}
-BENCHMARK_CAPTURE(BM_CbdStage, hal_read, app::CyclePhase::hal_read)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_CbdStage, kinematics, app::CyclePhase::kinematics)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_CbdStage, modal_models, app::CyclePhase::modal_models)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_CbdStage, catheters, app::CyclePhase::catheters)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_CbdStage, forces, app::CyclePhase::forces)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_CbdStage, hal_write, app::CyclePhase::hal_write)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_CbdStage, publish, app::CyclePhase::publish)
-    ->UseManualTime()
-    ->Iterations(kCbdIterations)
-    ->Unit(benchmark::kMicrosecond);
+// BM_CbdStage/<stage> for every stage the cbd scene runs (it has no tensor model).
+const bool kStagesRegistered = [] {
+  for (std::size_t k = 0; k < app::kCyclePhaseCount; ++k) {
+    const auto phase = static_cast<app::CyclePhase>(k);
+    if (phase == app::CyclePhase::tensor_models) continue;
+    benchmark::RegisterBenchmark(
+        (std::string("BM_CbdStage/") + app::kCyclePhaseNames[k]).c_str(),
+        [phase](benchmark::State& state) { run_sessions(state, "config/scenes/cbd.toml", phase); })
+        ->UseManualTime()
+        ->Iterations(kCbdIterations)
+        ->Unit(benchmark::kMicrosecond);
+  }
+  return true;
+}();
 
 }  // namespace
 

@@ -46,6 +46,7 @@
 
 #include "property_support.hpp"
 #include "trainer/app/force_command.hpp"
+#include "trainer/app/instrument_geometry.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/kinematics/trocar_kinematics.hpp"
 #include "trainer/model/segment_contact.hpp"
@@ -70,7 +71,6 @@ constexpr std::size_t kMaxPointForces = 2 * model::ForcepsCatheterContact::kMaxT
                                         4 * model::SegmentSurfaceContact::kMaxSegments;
 constexpr double kPeriodS = 1e-3;
 
-
 // One instrument of the device file, as HapticApp::create builds it, with the limits the
 // oracles use (double, straight from the configuration).
 struct InstrumentModel {
@@ -85,17 +85,8 @@ struct InstrumentModel {
 };
 
 InstrumentModel instrument_model(const config::InstrumentDeviceConfig& device) {
-  const auto to_vec3 = [](const std::array<double, 3>& v) {
-    return Vec3(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
-  };
   InstrumentModel model;
-  kinematics::TrocarGeometry geometry;
-  geometry.pivot_m = to_vec3(device.trocar_position_m);
-  geometry.shaft_axis = to_vec3(device.shaft_axis);
-  geometry.up_axis = to_vec3(device.up_axis);
-  geometry.shaft_length_m = static_cast<float>(device.shaft_length_m);
-  geometry.jaw_length_m = static_cast<float>(device.jaw_length_m);
-  model.kinematics = kinematics::TrocarKinematics(geometry);
+  model.kinematics = kinematics::TrocarKinematics(trocar_geometry(device));
   model.shaft_length_m = device.shaft_length_m;
   model.jaw_length_m = device.jaw_length_m;
   for (std::size_t j = 0; j < kJointCount; ++j) {
