@@ -15,6 +15,7 @@
 #include <string_view>
 
 #include "catheter_build.hpp"
+#include "catheter_images.hpp"
 #include "trainer/app/report.hpp"
 #include "trainer/app/trainer_run.hpp"
 #include "trainer/config/model.hpp"
@@ -77,6 +78,7 @@ constexpr std::uint64_t kSoakCycles = 100'000;
 
 TEST(CatheterScene, RunsWithNoHeapAllocationsOverALongRun) {
   ASSERT_TRUE(core::alloc::hooks_installed());
+  ASSERT_EQ(test::build_catheter_images(kRepo / "config/scenes/catheter.toml"), "");
   auto result = run_trainer(simulated(kRepo / "config/scenes/catheter.toml", kSoakCycles));
   ASSERT_TRUE(result) << result.error().message;
   EXPECT_EQ(result->loop.cycles, kSoakCycles);
@@ -125,7 +127,8 @@ class EditedCatheterScene : public ::testing::Test {
     }
     fs::copy_file(kRepo / "config/scenes/catheter.toml", root_ / "scenes/catheter.toml");
     fs::copy_file(kRepo / "config/devices/sim.toml", root_ / "devices/sim.toml");
-    fs::copy_file(kRepo / "config/trajectories/wall_press.csv", root_ / "trajectories/wall_press.csv");
+    fs::copy_file(kRepo / "config/trajectories/wall_press.csv",
+                  root_ / "trajectories/wall_press.csv");
   }
   void TearDown() override {
     std::error_code ignored;
@@ -142,7 +145,8 @@ class EditedCatheterScene : public ::testing::Test {
   }
   // The definition alone (its image, if any, left as it is).
   void write_definition(std::string_view from, std::string_view to) const {
-    std::string text = replaced(read_text(kRepo / "config/models/catheter.toml"), kRepoImage, kLocalImage);
+    std::string text =
+        replaced(read_text(kRepo / "config/models/catheter.toml"), kRepoImage, kLocalImage);
     std::ofstream(root_ / "models/catheter.toml", std::ios::binary | std::ios::trunc)
         << replaced(text, from, to);
   }
@@ -254,7 +258,8 @@ TEST_F(EditedCatheterScene, MissingStaleOrDamagedImagesAreRefusedBeforeArming) {
   EXPECT_NE(stale.error().message.find("[catheter] axial_stiffness_n = 200"), std::string::npos)
       << stale.error().message;
   EXPECT_NE(stale.error().message.find("out of date"), std::string::npos) << stale.error().message;
-  EXPECT_NE(stale.error().message.find("modelc build --scene"), std::string::npos) << stale.error().message;
+  EXPECT_NE(stale.error().message.find("modelc build --scene"), std::string::npos)
+      << stale.error().message;
 
   // Damaged: one byte of the rest positions flipped (the checksum catches it).
   write_definition(kNoGravity, kNoGravity);
@@ -264,14 +269,16 @@ TEST_F(EditedCatheterScene, MissingStaleOrDamagedImagesAreRefusedBeforeArming) {
   std::ofstream(image, std::ios::binary | std::ios::trunc) << bytes;
   auto damaged = run_trainer(simulated(scene, 5));
   ASSERT_FALSE(damaged);
-  EXPECT_NE(damaged.error().message.find(image.string()), std::string::npos) << damaged.error().message;
+  EXPECT_NE(damaged.error().message.find(image.string()), std::string::npos)
+      << damaged.error().message;
   EXPECT_NE(damaged.error().message.find("checksum"), std::string::npos) << damaged.error().message;
 
   // Missing.
   fs::remove(image);
   auto missing = run_trainer(simulated(scene, 5));
   ASSERT_FALSE(missing);
-  EXPECT_NE(missing.error().message.find(image.string()), std::string::npos) << missing.error().message;
+  EXPECT_NE(missing.error().message.find(image.string()), std::string::npos)
+      << missing.error().message;
   EXPECT_NE(missing.error().message.find("build it with: modelc build --scene"), std::string::npos)
       << missing.error().message;
 }

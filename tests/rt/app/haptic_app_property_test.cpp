@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "catheter_images.hpp"
 #include "model_spec.hpp"  // tools/modelc: a model definition → the modal builder's spec
 #include "property_support.hpp"
 #include "trainer/app/haptic_app.hpp"
@@ -87,7 +88,6 @@ namespace {
 
 using Vec3 = Eigen::Vector3f;
 using kinematics::kJointCount;
-
 
 // Sanitizer builds run a tenth of the cycles (the cbd cycle is ~20x slower under ASan) and
 // start the random trainee at once instead of after the scene's own 11 s script, so the few
@@ -992,6 +992,7 @@ TEST(HapticAppProperty, CbdSceneCommandsStayFiniteWithinLimitsAndNoFaultIsLost) 
   const std::uint64_t cycles = property::env_u64("TRAINER_PROPERTY_CYCLES").value_or(kCbdCycles);
   const std::filesystem::path& image = duct_image();
   ASSERT_FALSE(image.empty()) << "building the duct image failed";
+  ASSERT_EQ(test::build_catheter_images(property::kRepo / "config/scenes/cbd.toml"), "");
   // Fewer drifts: a drifted joint takes a tool off the small duct.
   ScenePropertyRun run(seed, "cbd", 2e-4);
   ASSERT_NO_FATAL_FAILURE(run.setup(property::kRepo / "config/scenes/cbd.toml", image, cycles));
@@ -1020,7 +1021,8 @@ class TwoInstrumentWall : public ::testing::Test {
       ASSERT_NE(at, std::string::npos) << from;
       scene.replace(at, from.size(), to);
     };
-    replace("\"../devices/sim.toml\"", "\"" + (property::kRepo / "config/devices/sim.toml").string() + "\"");
+    replace("\"../devices/sim.toml\"",
+            "\"" + (property::kRepo / "config/devices/sim.toml").string() + "\"");
     replace("\"../trajectories/wall_press.csv\"",
             "\"" + (property::kRepo / "config/trajectories/wall_press.csv").string() + "\"");
     replace("touched_by = [\"left\"]", "touched_by = [\"left\", \"right\"]");

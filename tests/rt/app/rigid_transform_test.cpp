@@ -2,6 +2,7 @@
 // intrinsic X-then-Y order), exact round trips for random placements, and the transform the
 // app builds per model from the scene, reported in the JSON report.
 #include "trainer/app/rigid_transform.hpp"
+#include "catheter_images.hpp"
 
 #include <array>
 #include <cmath>
@@ -74,9 +75,9 @@ TEST(RigidTransform, RandomPlacementsRoundTripAndStayRigid) {
   std::uniform_real_distribution<double> offset_m(-1.0, 1.0);
   std::uniform_real_distribution<float> coordinate_m(-0.3F, 0.3F);
   for (int trial = 0; trial < 200; ++trial) {
-    const RigidTransform placed = RigidTransform::from_placement(
-        {offset_m(rng), offset_m(rng), offset_m(rng)},
-        {angle_deg(rng), angle_deg(rng), angle_deg(rng)});
+    const RigidTransform placed =
+        RigidTransform::from_placement({offset_m(rng), offset_m(rng), offset_m(rng)},
+                                       {angle_deg(rng), angle_deg(rng), angle_deg(rng)});
     EXPECT_TRUE((placed.rotation() * placed.rotation().transpose())
                     .isApprox(RigidTransform::Mat3::Identity(), 1e-6F));
     EXPECT_NEAR(placed.rotation().determinant(), 1.0F, 1e-6F);
@@ -92,6 +93,9 @@ TEST(RigidTransform, RandomPlacementsRoundTripAndStayRigid) {
 
 // The app builds one transform per [[model]] from the scene and reports the placement.
 TEST(ModelPlacement, AppBuildsAndReportsEachModelsTransform) {
+  ASSERT_EQ(
+      test::build_catheter_images(std::string(TRAINER_SOURCE_DIR) + "/config/scenes/catheter.toml"),
+      "");
   auto loaded =
       config::load_scene(std::string(TRAINER_SOURCE_DIR) + "/config/scenes/catheter.toml");
   ASSERT_TRUE(loaded) << loaded.error().message;
@@ -108,10 +112,10 @@ TEST(ModelPlacement, AppBuildsAndReportsEachModelsTransform) {
   ASSERT_TRUE(arena);
   core::LogRing log;
   core::TripleBuffer<TelemetrySnapshot> telemetry;
-  auto app = HapticApp::create(scene,
-                               {device.encoders(), device.actuators(), device.digital_inputs(),
-                                device.digital_outputs()},
-                               *arena, log, telemetry, clock);
+  auto app = HapticApp::create(
+      scene,
+      {device.encoders(), device.actuators(), device.digital_inputs(), device.digital_outputs()},
+      *arena, log, telemetry, clock);
   ASSERT_TRUE(app) << app.error().message;
 
   const std::string name = scene.models[0].name;
