@@ -85,7 +85,8 @@ fs::path image_path(const std::string& suffix) {
           ::testing::UnitTest::GetInstance()->current_test_info()->name() + suffix + ".img");
 }
 
-// An image loaded the way rt/app/src/haptic_app.cpp loads it, and its ModalModelData views.
+// An image loaded the way the trainer loads it (rt/app/src/models/modal_setup.cpp), and its
+// ModalModelData views.
 struct LoadedImage {
   core::Arena arena;
   ModelImage image;
@@ -229,8 +230,9 @@ TEST(ModalBuild, ImageCarriesTheBuildToTheLoader) {
   }
   ASSERT_EQ(loaded.data.mode_shapes.size(),
             static_cast<std::size_t>(3 * kRings * kSegments * kStoredModes));
-  EXPECT_EQ(loaded.data.mode_shapes[static_cast<std::size_t>((3 * kFreeEndNode + 2) * kStoredModes + 3)],
-            static_cast<float>(result.basis.node_shapes(3 * kFreeEndNode + 2, 3)));
+  EXPECT_EQ(
+      loaded.data.mode_shapes[static_cast<std::size_t>((3 * kFreeEndNode + 2) * kStoredModes + 3)],
+      static_cast<float>(result.basis.node_shapes(3 * kFreeEndNode + 2, 3)));
   ASSERT_EQ(loaded.data.surface_nodes.size(), result.surface_nodes.size());
   for (std::size_t k = 0; k < result.surface_nodes.size(); ++k) {
     EXPECT_EQ(loaded.data.surface_nodes[k], static_cast<std::uint32_t>(result.surface_nodes[k]));

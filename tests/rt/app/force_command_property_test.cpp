@@ -5,11 +5,11 @@
 //
 // A case is one instrument in one cycle, through the real code of the cycle's forces phase:
 // the supervisor's input evaluation (e-stop, drive fault, enable switch, explicit resets), its
-// encoder-jump and non-finite checks of the joint positions (as HapticApp::sense_instrument
+// encoder-jump and non-finite checks of the joint positions (as the kinematics stage
 // calls them), the instrument's forward kinematics and command_instrument (Jᵀ of every point
 // force, finite check, magnitude clamp, slew limit, passivity observer, the device's effort
-// limits) — the function HapticApp::render_instrument calls. Cases come in episodes: a fresh
-// supervisor for the two instruments of config/devices/sim.toml, with the wall scene's safety
+// limits) — the function the forces stage (stages/force_stage.cpp) calls. Cases come in episodes: a
+// fresh supervisor for the two instruments of config/devices/sim.toml, with the wall scene's safety
 // limits or random ones in their configured ranges, run for 1..200 cycles. Inputs: joint
 // positions walking inside and outside the mechanism's range, encoder jumps, teleports, NaN/Inf;
 // tip and point forces from zero to 1e30 N (cancelling pairs, jaw squeezes, points off their
@@ -391,7 +391,7 @@ TEST_F(ForceCommandProperty, CommandIsFiniteWithinLimitsAndZeroUnlessArmed) {
             jump_borderline = jump_borderline || std::fabs(step - allowed) <= allowed * 1e-5;
           }
         }
-        positions[i] = joints;  // the app keeps the reading, as sense_instrument does
+        positions[i] = joints;  // the app keeps the reading, as the kinematics stage does
 
         const kinematics::InstrumentPose pose = model.kinematics.forward(joints);
         for (std::size_t j = 0; j < kJointCount; ++j) {

@@ -17,8 +17,9 @@
 //   5. the passivity observer on the rendered force; nothing but zero leaves unless armed.
 // Whatever the inputs (NaN, Inf, huge or cancelling forces, points off the instrument, a pose
 // from joints outside their range), the efforts are finite and within the limits.
-// HapticApp::render_instrument calls it every cycle; tests/rt/app/force_command_property_test.cpp
-// checks it over 10^6 random and hostile cases. RT path: noexcept, no heap.
+// The forces stage (rt/app/src/stages/force_stage.cpp) calls it every cycle;
+// tests/rt/app/force_command_property_test.cpp checks it over 10^6 random and hostile cases. RT
+// path: noexcept, no heap.
 #pragma once
 
 #include <cstddef>
