@@ -32,7 +32,7 @@ core::Expected<void> check_image_matches(const config::CatheterConfig& cfg,
                                          const model::CatheterModelData& data) {
   const model::CatheterParams& p = data.params;
   const model::CatheterContactSettings& c = data.contact;
-  const std::span<const float> rest = data.rest_positions_m;
+  const std::span<const float> rest = data.rest_positions_m;  // N ≥ 3 rows (the loader's check)
   const DefinitionField fields[] = {
       {"[catheter] length_m", cfg.length_m, p.length_m},
       {"[catheter] outer_radius_m", cfg.outer_radius_m, p.outer_radius_m},
@@ -45,9 +45,9 @@ core::Expected<void> check_image_matches(const config::CatheterConfig& cfg,
        static_cast<float>(p.particle_count)},
       {"[catheter] max_substeps", static_cast<double>(cfg.max_substeps),
        static_cast<float>(data.max_substeps)},
-      {"[pose] start_m[0]", cfg.start_m[0], rest.size() >= 3 ? rest[0] : 0.0F},
-      {"[pose] start_m[1]", cfg.start_m[1], rest.size() >= 3 ? rest[1] : 0.0F},
-      {"[pose] start_m[2]", cfg.start_m[2], rest.size() >= 3 ? rest[2] : 0.0F},
+      {"[pose] start_m[0]", cfg.start_m[0], rest[0]},
+      {"[pose] start_m[1]", cfg.start_m[1], rest[1]},
+      {"[pose] start_m[2]", cfg.start_m[2], rest[2]},
       {"[pose] hold_start", cfg.hold_start ? 1.0 : 0.0, data.hold_start ? 1.0F : 0.0F},
       {"[pose] gravity_m_per_s2[0]", cfg.gravity_m_per_s2[0], data.gravity_m_per_s2.x()},
       {"[pose] gravity_m_per_s2[1]", cfg.gravity_m_per_s2[1], data.gravity_m_per_s2.y()},

@@ -65,7 +65,6 @@ void KinematicsStage::run(CycleFrame& frame) noexcept {
       out.has_previous_tip = true;
     }
     out.joint_position = joints.position;
-    out.joint_velocity = joints.velocity;
     out.pose = rigs_[i].kinematics.forward(joints.position);
     out.tip_velocity_m_per_s = kinematics::TrocarKinematics::point_velocity(
         out.pose, out.pose.insertion_m, joints.velocity);

@@ -38,7 +38,6 @@ inline constexpr std::size_t kMaxToolForces =
 struct InstrumentFrame {
   // kinematics stage.
   kinematics::JointVector joint_position{};  // pitch rad, yaw rad, insertion m, roll rad, grip rad
-  kinematics::JointVector joint_velocity{};  // the same per second, low-passed
   kinematics::InstrumentPose pose{};         // this cycle's shaft, hinge, jaws, tip
   Eigen::Vector3f tip_velocity_m_per_s = Eigen::Vector3f::Zero();
   Eigen::Vector3f previous_tip_m = Eigen::Vector3f::Zero();  // last cycle's tip
