@@ -3,6 +3,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -20,6 +21,15 @@ std::string_view to_string(JointId joint) noexcept {
     case JointId::insertion: return "insertion";
     case JointId::roll: return "roll";
     case JointId::grip: return "grip";
+  }
+  return "unknown";
+}
+
+std::string_view to_string(AbortConnectionOption option) noexcept {
+  switch (option) {
+    case AbortConnectionOption::fault_signal: return "fault_signal";
+    case AbortConnectionOption::disable_voltage: return "disable_voltage";
+    case AbortConnectionOption::quick_stop: return "quick_stop";
   }
   return "unknown";
 }
@@ -43,9 +53,24 @@ using detail::IntRange;
 using detail::RealRange;
 using detail::TableReader;
 
-constexpr std::array<std::string_view, 1> kBackends = {"sim"};
-constexpr std::string_view kBackendNote =
-    "socketcan, gpiod and usb backends are not implemented yet";
+constexpr std::array<std::string_view, 2> kBackends = {"sim", "canopen"};
+constexpr std::string_view kBackendNote = "gpiod and usb backends are not implemented yet";
+constexpr std::size_t kCanopenBackend = 1;
+
+// [canopen] ranges (docs/config.md). Heartbeat times are u16 milliseconds in the drives'
+// objects; the SYNC period a u32 of microseconds (0x1006) but a haptic loop needs <= 100 ms.
+constexpr IntRange kNodeIdRange{1, 127};
+constexpr IntRange kU32Range{0, 0xFFFF'FFFF};
+constexpr IntRange kBitrateRange{10'000, 1'000'000};
+constexpr IntRange kSyncPeriodRangeUs{100, 100'000};
+constexpr IntRange kHeartbeatRangeMs{1, 65'535};
+constexpr IntRange kSdoTimeoutRangeMs{1, 10'000};
+constexpr IntRange kBootTimeoutRangeMs{1, 60'000};
+constexpr IntRange kDigitalNodeRange{-1, 127};
+constexpr RealRange kRatedTorqueRangeNm = RealRange::left_open(0.0, 100.0);
+constexpr std::int64_t kNanosecondsPerMillisecond = 1'000'000;
+constexpr std::array<std::string_view, 3> kAbortOptions = {"fault_signal", "disable_voltage",
+                                                          "quick_stop"};
 
 constexpr IntRange kPlantSubstepRangeUs{1, 1000};
 constexpr std::int64_t kDefaultPlantSubstepUs = 100;
@@ -127,7 +152,38 @@ constexpr JointKeys kPrismaticKeys{
     .limit_range = kPrismaticLimitRangeM,
 };
 
-JointConfig read_joint(TableReader& table, hal::JointKind kind, ErrorSink& errors) {
+// Which key claimed each node id on the bus (empty = free), to refuse duplicates where the
+// second one is written.
+using NodeOwners = std::array<std::string, 128>;
+
+CanopenJointConfig read_canopen_joint(TableReader& table, NodeOwners& owners,
+                                      ErrorSink& errors) {
+  CanopenJointConfig drive;
+  drive.node_id =
+      static_cast<std::uint8_t>(table.required_int("node_id", kNodeIdRange, "CANopen node id"));
+  if (errors.ok()) {
+    std::string& owner = owners[drive.node_id];
+    if (!owner.empty()) {
+      table.fail_value("node_id",
+                       " is already used by " + owner + ": expected a node id unique on the bus");
+    }
+    owner = table.qualified("node_id");
+  }
+  drive.vendor_id = static_cast<std::uint32_t>(
+      table.required_int("vendor_id", kU32Range, "identity object 0x1018 sub 1"));
+  drive.product_code = static_cast<std::uint32_t>(
+      table.required_int("product_code", kU32Range, "identity object 0x1018 sub 2"));
+  if (table.has("revision")) {
+    drive.revision = static_cast<std::uint32_t>(
+        table.required_int("revision", kU32Range, "identity object 0x1018 sub 3"));
+  }
+  drive.motor_rated_torque_nm = table.required_double(
+      "motor_rated_torque_nm", kRatedTorqueRangeNm, "newton-metres, the drive's object 0x6076");
+  return drive;
+}
+
+JointConfig read_joint(TableReader& table, hal::JointKind kind, NodeOwners* owners,
+                       ErrorSink& errors) {
   const bool prismatic = kind == hal::JointKind::prismatic;
   const JointKeys& keys = prismatic ? kPrismaticKeys : kRevoluteKeys;
   JointConfig joint;
@@ -152,6 +208,7 @@ JointConfig read_joint(TableReader& table, hal::JointKind kind, ErrorSink& error
                                                kHandStiffnessRange, keys.stiffness_unit);
   joint.hand_damping = table.optional_double(keys.damping_key, keys.default_damping,
                                              kHandDampingRange, keys.damping_unit);
+  if (owners != nullptr) joint.canopen = read_canopen_joint(table, *owners, errors);
   if (errors.ok() && joint.min_position >= joint.max_position) {
     table.fail_value(keys.max_key, " is not greater than " + std::string(keys.min_key) + " = " +
                                        detail::format_number(joint.min_position) + ": expected " +
@@ -178,7 +235,9 @@ std::string format_vec3(const Vec3& vector) {
   return text;
 }
 
-InstrumentDeviceConfig read_instrument(TableReader& table, ErrorSink& errors) {
+// `owners` is null unless the backend is canopen (then every joint names its drive).
+InstrumentDeviceConfig read_instrument(TableReader& table, NodeOwners* owners,
+                                       ErrorSink& errors) {
   InstrumentDeviceConfig instrument;
   instrument.name = table.required_name("name");
   instrument.trocar_position_m =
@@ -210,7 +269,7 @@ InstrumentDeviceConfig read_instrument(TableReader& table, ErrorSink& errors) {
     const auto kind =
         joint_id == JointId::insertion ? hal::JointKind::prismatic : hal::JointKind::revolute;
     TableReader joint_table = table.required_table(to_string(joint_id));
-    instrument.joints[i] = read_joint(joint_table, kind, errors);
+    instrument.joints[i] = read_joint(joint_table, kind, owners, errors);
   }
   table.finish();
   return instrument;
@@ -246,6 +305,81 @@ DigitalConfig read_digital(TableReader& table, ErrorSink& errors) {
   return digital;
 }
 
+std::int64_t read_ms(TableReader& table, std::string_view key, std::int64_t fallback,
+                     IntRange range, std::string_view meaning) {
+  return table.optional_int(key, fallback, range, meaning) * kNanosecondsPerMillisecond;
+}
+
+CanopenConfig read_canopen(TableReader& table, ErrorSink& errors) {
+  CanopenConfig bus;
+  bus.interface = table.required_string("interface", "a SocketCAN interface name, e.g. can0");
+  if (errors.ok() && (bus.interface.empty() || bus.interface.size() > 15)) {
+    table.fail_value("interface", ": expected 1..15 characters (a Linux interface name)");
+  }
+  bus.bitrate = static_cast<std::uint32_t>(
+      table.optional_int("bitrate", 1'000'000, kBitrateRange, "bits per second"));
+  bus.sync_period_ns =
+      table.required_int("sync_period_us", kSyncPeriodRangeUs, "microseconds") *
+      kNanosecondsPerMicrosecond;
+  bus.master_node_id = static_cast<std::uint8_t>(
+      table.optional_int("master_node_id", 127, kNodeIdRange, "node id of the master"));
+  bus.master_heartbeat_ns =
+      read_ms(table, "master_heartbeat_ms", 10, kHeartbeatRangeMs, "milliseconds");
+  bus.drive_heartbeat_consumer_ns = read_ms(table, "drive_heartbeat_consumer_ms", 30,
+                                            kHeartbeatRangeMs, "milliseconds, object 0x1016");
+  bus.drive_heartbeat_ns =
+      read_ms(table, "drive_heartbeat_ms", 10, kHeartbeatRangeMs, "milliseconds, object 0x1017");
+  bus.drive_heartbeat_timeout_ns =
+      read_ms(table, "drive_heartbeat_timeout_ms", 30, kHeartbeatRangeMs, "milliseconds");
+  bus.rpdo_timeout_ns = read_ms(table, "rpdo_timeout_ms", 10, kHeartbeatRangeMs,
+                                "milliseconds, RPDO1 event timer (deadline) on the drives");
+  const auto option = table.required_choice("abort_connection", kAbortOptions);
+  if (option) bus.abort_connection = static_cast<AbortConnectionOption>(*option + 1);
+  bus.sdo_timeout_ns = read_ms(table, "sdo_timeout_ms", 100, kSdoTimeoutRangeMs, "milliseconds");
+  bus.boot_timeout_ns =
+      read_ms(table, "boot_timeout_ms", 3000, kBootTimeoutRangeMs, "milliseconds");
+  bus.digital_inputs_node = static_cast<int>(table.optional_int(
+      "digital_inputs_node", -1, kDigitalNodeRange, "node id, -1 = no digital inputs"));
+  bus.digital_outputs_node = static_cast<int>(table.optional_int(
+      "digital_outputs_node", -1, kDigitalNodeRange, "node id, -1 = no digital outputs"));
+  for (std::string_view key : {"digital_inputs_node", "digital_outputs_node"}) {
+    const int node = key == "digital_inputs_node" ? bus.digital_inputs_node
+                                                  : bus.digital_outputs_node;
+    if (errors.ok() && node == 0) table.fail_value(key, ": expected -1 or a node id 1..127");
+  }
+  // A drive must see at least two of the master's heartbeats inside its consumer time, and
+  // the master two of each drive's, or one late frame trips the bus.
+  if (errors.ok() && bus.drive_heartbeat_consumer_ns < 2 * bus.master_heartbeat_ns) {
+    table.fail_value("drive_heartbeat_consumer_ms",
+                     ": expected at least twice master_heartbeat_ms = " +
+                         std::to_string(bus.master_heartbeat_ns / kNanosecondsPerMillisecond));
+  }
+  if (errors.ok() && bus.drive_heartbeat_timeout_ns < 2 * bus.drive_heartbeat_ns) {
+    table.fail_value("drive_heartbeat_timeout_ms",
+                     ": expected at least twice drive_heartbeat_ms = " +
+                         std::to_string(bus.drive_heartbeat_ns / kNanosecondsPerMillisecond));
+  }
+  if (errors.ok() && bus.rpdo_timeout_ns < 2 * bus.sync_period_ns) {
+    table.fail_value("rpdo_timeout_ms", ": expected at least two SYNC periods (sync_period_us = " +
+                                            std::to_string(bus.sync_period_ns / 1000) + ")");
+  }
+  table.finish();
+  return bus;
+}
+
+// The digital nodes must be drives of this file.
+void check_digital_nodes(const CanopenConfig& bus, const NodeOwners& owners, TableReader& table,
+                         ErrorSink& errors) {
+  for (std::string_view key : {"digital_inputs_node", "digital_outputs_node"}) {
+    const int node = key == "digital_inputs_node" ? bus.digital_inputs_node
+                                                  : bus.digital_outputs_node;
+    if (errors.ok() && node > 0 &&
+        (owners[static_cast<std::size_t>(node)].empty() || node == bus.master_node_id)) {
+      table.fail_value(key, ": expected -1 or the node_id of one of the joints' drives");
+    }
+  }
+}
+
 DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   DeviceConfig config;
   config.source_path = parsed.file.absolute_path;
@@ -255,6 +389,7 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   config.name = device.required_name("name");
   const auto backend = device.required_choice("backend", kBackends, kBackendNote);
   if (backend) config.backend = std::string(kBackends[*backend]);
+  const bool canopen = backend && *backend == kCanopenBackend;
   config.plant_substep_ns = device.optional_int("plant_substep_us", kDefaultPlantSubstepUs,
                                                 kPlantSubstepRangeUs, "microseconds") *
                             kNanosecondsPerMicrosecond;
@@ -263,9 +398,20 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   TableReader digital = root.required_table("digital");
   config.digital = read_digital(digital, errors);
 
+  // [canopen] belongs to the canopen backend: for any other backend root.finish() reports it
+  // as an unknown table.
+  std::optional<TableReader> canopen_table;
+  NodeOwners owners{};
+  if (canopen) {
+    canopen_table.emplace(root.required_table("canopen"));
+    config.canopen = read_canopen(*canopen_table, errors);
+    owners[config.canopen.master_node_id] = canopen_table->qualified("master_node_id");
+  }
+
   auto instruments = root.array_of_tables("instrument", 1, kMaxDeviceInstruments, "instruments");
   for (std::size_t i = 0; i < instruments.size(); ++i) {
-    InstrumentDeviceConfig instrument = read_instrument(instruments[i], errors);
+    InstrumentDeviceConfig instrument =
+        read_instrument(instruments[i], canopen ? &owners : nullptr, errors);
     for (std::size_t earlier = 0; errors.ok() && earlier < i; ++earlier) {
       if (config.instruments[earlier].name == instrument.name) {
         instruments[i].fail_value("name", " duplicates " + instruments[earlier].qualified("name") +
@@ -274,6 +420,7 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
     }
     config.instruments.push_back(std::move(instrument));
   }
+  if (canopen_table) check_digital_nodes(config.canopen, owners, *canopen_table, errors);
   root.finish();
   return config;
 }

@@ -165,6 +165,8 @@ std::uint32_t TableReader::line(std::string_view key) const {
   return line_of(*table_);
 }
 
+bool TableReader::has(std::string_view key) { return find(key) != nullptr; }
+
 const toml::node* TableReader::find(std::string_view key) {
   if (std::find(known_keys_.begin(), known_keys_.end(), key) == known_keys_.end()) {
     known_keys_.emplace_back(key);

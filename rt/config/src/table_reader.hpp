@@ -107,6 +107,8 @@ class TableReader {
 
   const std::string& prefix() const noexcept { return prefix_; }
   bool present() const noexcept { return table_ != nullptr; }
+  // Whether `key` is written in this table (it then counts as known for finish()).
+  bool has(std::string_view key);
   // "prefix.key" (or "key" at the root): how messages name a key of this table.
   std::string qualified(std::string_view key) const;
   // Line of the key's value, of this table when the key is absent, 0 when unknown.

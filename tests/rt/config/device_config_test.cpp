@@ -297,7 +297,7 @@ const DeviceErrorCase kDeviceErrorCases[] = {
     {"substep_upper", "plant_substep_us = 100", "plant_substep_us = 1001",
      "device.plant_substep_us = 1001 is out of range: expected 1 to 1000 (microseconds)"},
     {"unknown_backend", "backend = \"sim\"", "backend = \"socketcan\"",
-     "device.backend = \"socketcan\": expected one of: sim (socketcan, gpiod and usb backends "
+     "device.backend = \"socketcan\": expected one of: sim, canopen (gpiod and usb backends "
      "are not implemented yet)"},
     {"device_name", "name = \"sim-two-port\"", "name = \"sim two port\"",
      "device.name = \"sim two port\": expected a name of 1 to 32 characters from A-Z, a-z, "
@@ -388,6 +388,134 @@ TEST_F(DeviceFileTest, KeysInTheWrongTableAreUnknownThere) {
                                std::to_string(line_of(edited.text, "estop_input_bit")) +
                                ": unknown key 'device.estop_input_bit' (known: name, backend, "
                                "plant_substep_us)");
+}
+
+// ---------------------------------------------------------------- backend "canopen"
+
+TEST(CanopenDeviceFile, LoadsTheBusAndEveryJointsDrive) {
+  const auto device = load_device(repo_path("config/devices/canopen_vcan.toml"));
+  ASSERT_TRUE(device.has_value()) << device.error().message;
+  EXPECT_EQ(device->backend, "canopen");
+  const CanopenConfig& bus = device->canopen;
+  EXPECT_EQ(bus.interface, "vcan0");
+  EXPECT_EQ(bus.bitrate, 1'000'000U);
+  EXPECT_EQ(bus.sync_period_ns, 1'000'000);
+  EXPECT_EQ(bus.master_node_id, 127);
+  EXPECT_EQ(bus.master_heartbeat_ns, 10'000'000);
+  EXPECT_EQ(bus.drive_heartbeat_consumer_ns, 30'000'000);
+  EXPECT_EQ(bus.drive_heartbeat_ns, 10'000'000);
+  EXPECT_EQ(bus.drive_heartbeat_timeout_ns, 30'000'000);
+  EXPECT_EQ(bus.rpdo_timeout_ns, 10'000'000);
+  EXPECT_EQ(bus.abort_connection, AbortConnectionOption::quick_stop);
+  EXPECT_EQ(bus.sdo_timeout_ns, 100'000'000);
+  EXPECT_EQ(bus.boot_timeout_ns, 3'000'000'000);
+  EXPECT_EQ(bus.digital_inputs_node, 1);
+  EXPECT_EQ(bus.digital_outputs_node, 1);
+  ASSERT_EQ(device->instruments.size(), 2U);
+  // Nodes 1..10 in file order; the hexadecimal identity as written.
+  std::uint8_t expected_node = 1;
+  for (const auto& instrument : device->instruments) {
+    for (const auto& joint : instrument.joints) {
+      EXPECT_EQ(joint.canopen.node_id, expected_node++);
+      EXPECT_EQ(joint.canopen.vendor_id, 0x00545252U);
+      EXPECT_EQ(joint.canopen.product_code, 0x402U);
+      EXPECT_FALSE(joint.canopen.revision.has_value());
+      EXPECT_GT(joint.canopen.motor_rated_torque_nm, 0.0);
+    }
+  }
+  // The mechanism is sim.toml's, so simdrive's plant is the simulated bench's.
+  const auto sim = load_device(repo_path("config/devices/sim.toml"));
+  ASSERT_TRUE(sim.has_value());
+  EXPECT_DOUBLE_EQ(device->instruments[1].joints[2].gear_ratio,
+                   sim->instruments[1].joints[2].gear_ratio);
+  EXPECT_EQ(sim->instruments[0].joints[0].canopen.node_id, 0);  // sim: no drives
+}
+
+struct CanopenErrorCase {
+  const char* name;
+  const char* from;  // first occurrence in config/devices/canopen_vcan.toml is replaced
+  const char* to;
+  const char* expected;
+};
+
+std::ostream& operator<<(std::ostream& stream, const CanopenErrorCase& error_case) {
+  return stream << error_case.name;
+}
+
+class CanopenErrorTest : public ConfigFileTest,
+                         public ::testing::WithParamInterface<CanopenErrorCase> {};
+
+TEST_P(CanopenErrorTest, MessageNamesFileLineKeyValueAndExpectation) {
+  const CanopenErrorCase& error_case = GetParam();
+  const std::string text = read_text(repo_path("config/devices/canopen_vcan.toml"));
+  const auto edited = replace_first(text, error_case.from, error_case.to);
+  const auto path = write("devices/can.toml", edited.text);
+  const std::string message = error_message(load_device(path));
+  expect_contains(message, path.string() + ":" + std::to_string(edited.line) + ": " +
+                               error_case.expected);
+}
+
+const CanopenErrorCase kCanopenErrorCases[] = {
+    {"node_id_zero", "node_id = 1 ", "node_id = 0 ",
+     "instrument[0].pitch.node_id = 0 is out of range: expected 1 to 127 (CANopen node id)"},
+    {"node_id_duplicate", "node_id = 2", "node_id = 1",
+     "instrument[0].yaw.node_id = 1 is already used by instrument[0].pitch.node_id: expected a "
+     "node id unique on the bus"},
+    {"node_id_is_the_masters", "node_id = 10", "node_id = 127",
+     "instrument[1].grip.node_id = 127 is already used by canopen.master_node_id"},
+    {"vendor_id_too_large", "vendor_id = 0x00545252", "vendor_id = 0x100000000",
+     "instrument[0].pitch.vendor_id = 4294967296 is out of range: expected 0 to 4294967295"},
+    {"rated_torque_zero", "motor_rated_torque_nm = 0.060", "motor_rated_torque_nm = 0",
+     "instrument[0].pitch.motor_rated_torque_nm = 0 is out of range: expected more than 0"},
+    {"interface_too_long", "interface = \"vcan0\"", "interface = \"can_interface_16\"",
+     "canopen.interface = \"can_interface_16\": expected 1..15 characters"},
+    {"sync_too_fast", "sync_period_us = 1000", "sync_period_us = 50",
+     "canopen.sync_period_us = 50 is out of range: expected 100 to 100000 (microseconds)"},
+    {"consumer_shorter_than_two_master_beats", "drive_heartbeat_consumer_ms = 30",
+     "drive_heartbeat_consumer_ms = 15",
+     "canopen.drive_heartbeat_consumer_ms = 15: expected at least twice master_heartbeat_ms = "
+     "10"},
+    {"master_consumer_too_short", "drive_heartbeat_timeout_ms = 30",
+     "drive_heartbeat_timeout_ms = 19",
+     "canopen.drive_heartbeat_timeout_ms = 19: expected at least twice drive_heartbeat_ms = 10"},
+    {"rpdo_deadline_shorter_than_two_syncs", "rpdo_timeout_ms = 10", "rpdo_timeout_ms = 1",
+     "canopen.rpdo_timeout_ms = 1: expected at least two SYNC periods (sync_period_us = 1000)"},
+    {"abort_option_unknown", "abort_connection = \"quick_stop\"",
+     "abort_connection = \"ignore\"",
+     "canopen.abort_connection = \"ignore\": expected one of: fault_signal, disable_voltage, "
+     "quick_stop"},
+    {"digital_node_not_a_drive", "digital_inputs_node = 1", "digital_inputs_node = 42",
+     "canopen.digital_inputs_node = 42: expected -1 or the node_id of one of the joints' "
+     "drives"},
+    {"unknown_canopen_key", "bitrate = 1000000", "bitrat = 1000000",
+     "unknown key 'canopen.bitrat'"},
+};
+
+INSTANTIATE_TEST_SUITE_P(EveryMistake, CanopenErrorTest, ::testing::ValuesIn(kCanopenErrorCases),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
+TEST_F(DeviceFileTest, CanopenWithoutItsTableIsAMissingTable) {
+  const std::string text = read_text(repo_path("config/devices/canopen_vcan.toml"));
+  std::string edited = text;
+  const auto begin = edited.find("[canopen]");
+  const auto end = edited.find("[digital]");
+  edited.erase(begin, end - begin);
+  const std::string message = error_message(load_device(write("can.toml", edited)));
+  expect_contains(message, "[canopen]");
+}
+
+TEST_F(DeviceFileTest, ACanopenTableInASimFileIsUnknown) {
+  const std::string sim = read_text(repo_path("config/devices/sim.toml"));
+  const std::string message =
+      error_message(load_device(write("sim.toml", sim + "\n[canopen]\ninterface = \"can0\"\n")));
+  expect_contains(message, "unknown key 'canopen'");
+}
+
+TEST_F(DeviceFileTest, CanopenJointKeysInASimFileAreUnknown) {
+  const std::string sim = read_text(repo_path("config/devices/sim.toml"));
+  const auto edited = replace_first(sim, "counts_per_rev = 4096", "node_id = 1\ncounts_per_rev = 4096");
+  const std::string message = error_message(load_device(write("sim.toml", edited.text)));
+  expect_contains(message, "unknown key 'instrument[0].pitch.node_id'");
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,6 +34,17 @@ constexpr std::size_t index(JointId joint) noexcept {
   return static_cast<std::size_t>(joint);
 }
 
+// The CiA 402 servo drive behind one joint (backend "canopen"): its node on the bus, the
+// identity it must report (object 0x1018) and the motor rated torque that scales target and
+// actual torque (0x6076, per-mille units in 0x6071/0x6072/0x6077).
+struct CanopenJointConfig {
+  std::uint8_t node_id = 0;          // 1..127, unique on the bus; 0 = not a CANopen joint
+  std::uint32_t vendor_id = 0;       // 0x1018 sub 1
+  std::uint32_t product_code = 0;    // 0x1018 sub 2
+  std::optional<std::uint32_t> revision;  // 0x1018 sub 3, checked only when given
+  double motor_rated_torque_nm = 0.0;     // 0x6076 (the drive reports mN·m)
+};
+
 // One axis of an instrument on its trocar. Positions are joint side: rad for revolute joints,
 // m for the prismatic insertion joint; "effort" below is N·m or N accordingly.
 struct JointConfig {
@@ -48,6 +60,7 @@ struct JointConfig {
   double inertia = 0.0;         // kg·m² (revolute) or kg (prismatic), reflected to the joint
   double hand_stiffness = 0.0;  // N·m/rad or N/m: the trainee's grip on the handle
   double hand_damping = 0.0;    // N·m·s/rad or N·s/m
+  CanopenJointConfig canopen;   // backend "canopen" only
 };
 
 // The encoder/motor conversion the HAL backends use for this joint.
@@ -72,13 +85,42 @@ struct DigitalConfig {
   int fault_lamp_output_bit = -1;
 };
 
+// CiA 402 abort connection option code (0x6007): what a drive does by itself when it loses the
+// master (heartbeat consumer timeout, RPDO deadline, bus-off).
+enum class AbortConnectionOption : std::uint8_t {
+  fault_signal = 1,     // go to Fault (fault reaction: torque removed)
+  disable_voltage = 2,  // power stage off at once
+  quick_stop = 3,       // quick stop (for a torque-mode drive: torque to zero, then off)
+};
+std::string_view to_string(AbortConnectionOption option) noexcept;
+
+// The bus and the master's side of CANopen (backend "canopen"). Times are what goes into the
+// drives' objects: heartbeats in whole milliseconds (0x1016/0x1017), SYNC in µs (0x1006).
+struct CanopenConfig {
+  std::string interface;                   // SocketCAN interface name, e.g. "can0", "vcan0"
+  std::uint32_t bitrate = 1'000'000;       // bit/s of the bus (set with ip link): bus-load check
+  std::int64_t sync_period_ns = 0;         // SYNC period; a whole multiple of the loop period
+  std::uint8_t master_node_id = 0;         // node id of the master's heartbeat (0x700 + id)
+  std::int64_t master_heartbeat_ns = 0;    // master's heartbeat producer time
+  std::int64_t drive_heartbeat_consumer_ns = 0;  // 0x1016 on every drive: master lost after
+  std::int64_t drive_heartbeat_ns = 0;     // 0x1017 on every drive
+  std::int64_t drive_heartbeat_timeout_ns = 0;  // master's consumer time for each drive
+  std::int64_t rpdo_timeout_ns = 0;        // RPDO1 event timer = deadline monitoring on drives
+  AbortConnectionOption abort_connection = AbortConnectionOption::quick_stop;
+  std::int64_t sdo_timeout_ns = 0;         // per SDO request at configure
+  std::int64_t boot_timeout_ns = 0;        // wait for every node at configure
+  int digital_inputs_node = -1;            // node whose 0x60FD bits 16..31 are the input word
+  int digital_outputs_node = -1;           // node whose 0x60FE:01 bits 16..31 are the outputs
+};
+
 struct DeviceConfig {
   std::filesystem::path source_path;  // absolute, lexically normal path of the file loaded
   std::string name;
-  std::string backend;                // "sim" (the only backend implemented so far)
+  std::string backend;                // "sim" or "canopen"
   std::int64_t plant_substep_ns = 0;  // sim backend: integration step of the simulated plant
   DigitalConfig digital;
   std::vector<InstrumentDeviceConfig> instruments;  // 1..kMaxDeviceInstruments, names unique
+  CanopenConfig canopen;              // [canopen], backend "canopen" only
 };
 
 // Loads and validates a device file. On failure the message names the file, the line (when
