@@ -20,6 +20,11 @@ packages=(
   libbenchmark-dev       # benchmarks
   rt-tests               # cyclictest, the timing reference
   gnuplot-nox            # PNG plots of the tradeoff and jitter tools
+  qemu-system-x86        # the bench VM (tools/benchvm): QEMU TCG boots the Debian RT kernel
+  busybox-static         # the bench VM's initramfs: /init's shell, insmod, mount, cpio archive
+  xz-utils               # the bench VM: vmlinux from the kernel package's xz-compressed bzImage
+  can-utils              # candump/cansend/cangw in the bench VM's CAN tests (run from the host root)
+  iproute2               # ip: vcan links in the bench VM's CAN tests
   clang-format clang-tidy
 )
 

@@ -22,7 +22,7 @@
 #include <string>
 
 #include "trainer/app/haptic_app.hpp"
-#include "trainer/app/sim_wiring.hpp"
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/histogram.hpp"

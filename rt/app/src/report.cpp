@@ -172,6 +172,33 @@ nlohmann::json models_json(const RunResult& r) {
   return models;
 }
 
+// The CAN bus as the master saw it (backend canopen only; null otherwise).
+nlohmann::json can_json(const RunResult& r) {
+  if (!r.can) return nullptr;
+  const hal::socketcan::CanDiagnostics& c = *r.can;
+  return {{"bus_load_estimate", c.bus_load},
+          {"sync_sent", c.sync_sent},
+          {"rpdo_sent", c.rpdo_sent},
+          {"tpdo_received", c.tpdo_received},
+          {"heartbeats_received", c.heartbeats_received},
+          {"emcy_received", c.emcy_received},
+          {"error_frames", c.error_frames},
+          {"frames_rejected", c.frames_rejected},
+          {"stale_samples", c.stale_samples},
+          {"cycles_frame_budget_hit", c.cycles_frame_budget_hit},
+          {"faults", r.can_faults},
+          {"transport",
+           {{"rx_frames", c.transport.rx_frames},
+            {"rx_error_frames", c.transport.rx_error_frames},
+            {"rx_kernel_drops", c.transport.rx_kernel_drops},
+            {"rx_malformed", c.transport.rx_malformed},
+            {"tx_frames", c.transport.tx_frames},
+            {"tx_dropped", c.transport.tx_dropped},
+            {"io_errors", c.transport.io_errors},
+            {"rx_calls", c.transport.rx_calls},
+            {"tx_calls", c.transport.tx_calls}}}};
+}
+
 }  // namespace
 
 nlohmann::json report_json(const RunResult& r) {
@@ -182,7 +209,9 @@ nlohmann::json report_json(const RunResult& r) {
       {"schema_version", kReportSchemaVersion},
       {"scene", {{"file", r.scene_file.string()}, {"name", r.scene_name}}},
       {"hal", r.hal},
+      {"device_file", r.device_file.string()},
       {"time_source", r.time_source},
+      {"slow_motion", r.slow_motion},
       {"period_ns", r.period_ns},
       {"requested_cycles", r.requested_cycles},
       {"cycles", r.loop.cycles},
@@ -235,6 +264,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"models", models_json(r)},
       {"model_step_errors", r.app.model_step_errors},
       {"log_records_dropped", r.log_records_dropped},
+      {"can", can_json(r)},
   };
 }
 

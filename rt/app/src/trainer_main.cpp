@@ -23,8 +23,17 @@ int main(int argc, char** argv) {
   cli.add_option("--scene", options.scene_file, "Scene file (TOML), e.g. config/scenes/wall.toml")
       ->required()
       ->check(CLI::ExistingFile);
-  cli.add_option("--hal", options.hal, "HAL backend: sim (simulated bench)")
-      ->check(CLI::IsMember({"sim"}));
+  std::string device_file;
+  auto* device_opt =
+      cli.add_option("--device", device_file,
+                     "Device file (TOML) replacing the one the scene names, e.g. "
+                     "config/devices/canopen_vcan.toml; its [device] backend is the HAL")
+          ->check(CLI::ExistingFile);
+  cli.add_option("--hal", options.hal,
+                 "device: the backend the device file names (sim or canopen); sim: the "
+                 "simulated bench with the device file's mechanism, whatever it names")
+      ->check(CLI::IsMember({"device", "sim"}))
+      ->capture_default_str();
   auto* cycles_opt =
       cli.add_option("--cycles", cycles, "Number of cycles to run")->check(CLI::PositiveNumber);
   auto* seconds_opt =
@@ -33,7 +42,7 @@ int main(int argc, char** argv) {
   cli.add_option("--report", report_file, "Write the JSON report to this file");
   cli.add_option("--time", time_source,
                  "real: CLOCK_MONOTONIC (the appliance); simulated: as fast as possible, "
-                 "deterministic (sim HAL only)")
+                 "deterministic (simulated bench only)")
       ->check(CLI::IsMember({"real", "simulated"}));
   std::int64_t period_us = 0;
   int priority = 0;
@@ -44,6 +53,10 @@ int main(int argc, char** argv) {
       "--priority", priority, "SCHED_FIFO priority (0 = SCHED_OTHER), replacing loop.priority");
   auto* cpu_opt = cli.add_option("--cpu", cpu,
                                  "CPU to pin the haptic thread to (-1 = none), replacing loop.cpu");
+  cli.add_option("--slow-motion", options.slow_motion,
+                 "Run real time N times slower (an emulator such as the bench VM, debugging); "
+                 "1 = the appliance")
+      ->check(CLI::Range(1, 1000));
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
   cli.footer(
@@ -52,6 +65,7 @@ int main(int argc, char** argv) {
       "3 run completed with a fault latched.");
   CLI11_PARSE(cli, argc, argv);
 
+  if (*device_opt) options.device_file = device_file;
   if (*cycles_opt) options.cycles = cycles;
   if (*seconds_opt) options.seconds = seconds;
   options.time_source = time_source == "simulated" ? trainer::app::TimeSource::simulated

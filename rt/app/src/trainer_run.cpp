@@ -9,7 +9,7 @@
 #include <memory>
 #include <optional>
 
-#include "trainer/app/sim_wiring.hpp"
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
@@ -81,43 +81,70 @@ namespace {
 struct RunSetup {
   config::SceneConfig scene;
   std::unique_ptr<core::Clock> clock;
-  std::unique_ptr<hal::sim::SimDevice> device;
+  std::unique_ptr<hal::Device> device;
+  hal::sim::SimDevice* sim = nullptr;  // the device when it is the simulated bench
   std::optional<core::Arena> arena;
   std::unique_ptr<core::LogRing> log = std::make_unique<core::LogRing>();
   std::unique_ptr<core::TripleBuffer<TelemetrySnapshot>> telemetry =
       std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
   std::unique_ptr<HapticApp> app;
   std::uint64_t cycles = 0;
+  std::string backend;  // "sim" or the device file's hardware backend
 };
 
 // The scene with this run's loop overrides, the HAL backend configured and active, the arena
 // carved and sealed, the app created; the device is deactivated again on any error.
 core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
-  auto scene = config::load_scene(options.scene_file);
+  if (options.slow_motion < 1 || options.slow_motion > 1000) {
+    return core::make_error("--slow-motion " + std::to_string(options.slow_motion) +
+                            ": expected 1 (real time) to 1000");
+  }
+  if (options.slow_motion > 1 && options.time_source != TimeSource::real) {
+    return core::make_error("--slow-motion slows real time: it needs --time real");
+  }
+  if (options.hal != "device" && options.hal != "sim") {
+    return core::make_error("--hal " + options.hal +
+                            ": unknown choice; expected 'device' (the device file's backend) or "
+                            "'sim' (the simulated bench with the device file's mechanism)");
+  }
+  config::LoadOptions load_options;
+  load_options.device_file = options.device_file;
+  auto scene = config::load_scene(options.scene_file, load_options);
   if (!scene) return std::move(scene).error();
   if (auto overridden = config::apply_loop_overrides(scene->loop, options.loop_overrides);
       !overridden) {
     return std::move(overridden).error();
   }
-  if (options.hal != "sim") {
-    return core::make_error("--hal " + options.hal +
-                            ": unknown backend; this build offers 'sim' (the simulated bench)");
-  }
   setup.scene = std::move(*scene);
   const config::SceneConfig& cfg = setup.scene;
+  const bool simulated_bench = options.hal == "sim" || cfg.device.backend == "sim";
   if (options.time_source == TimeSource::simulated) {
+    if (!simulated_bench) {
+      return core::make_error("--time simulated needs the simulated bench, but device file " +
+                              cfg.device.source_path.string() + " names backend '" +
+                              cfg.device.backend + "': run in real time or add --hal sim");
+    }
     setup.clock = std::make_unique<core::ManualClock>(0);
+  } else if (options.slow_motion > 1) {
+    setup.clock = std::make_unique<core::SlowMotionClock>(options.slow_motion);
   } else {
     setup.clock = std::make_unique<core::MonotonicClock>();
   }
-  setup.device = std::make_unique<hal::sim::SimDevice>(*setup.clock, sim_params_from(cfg));
-  hal::sim::SimDevice& device = *setup.device;
+  setup.backend = simulated_bench ? "sim" : cfg.device.backend;
+  if (simulated_bench) {
+    auto sim = std::make_unique<hal::sim::SimDevice>(*setup.clock, sim_params_from(cfg));
+    setup.sim = sim.get();
+    setup.device = std::move(sim);
+  } else {
+    auto device = make_hardware_device(cfg, *setup.clock);
+    if (!device) return std::move(device).error();
+    setup.device = std::move(*device);
+  }
+  hal::Device& device = *setup.device;
   if (auto configured = device.configure(); !configured) {
     return core::make_error(cfg.device.source_path.string() + ": " + configured.error().message);
   }
-  if (auto activated = device.activate(); !activated) {
-    return core::make_error(cfg.device.source_path.string() + ": " + activated.error().message);
-  }
+  // Deactivation is safe in any state: it also leaves a configured CAN bus in a safe state.
   const auto fail = [&](core::Error error) -> core::Expected<void> {
     device.deactivate();
     return error;
@@ -131,9 +158,18 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
       HapticApp::create(cfg, binding, *setup.arena, *setup.log, *setup.telemetry, *setup.clock);
   if (!app) return fail(std::move(app).error());
   setup.app = std::move(*app);
-  auto cycles = cycles_to_run(options, cfg, device.script_duration_s());
+  // The trainee script plays on the simulated bench only; on hardware a person moves the
+  // handles and the run lasts --cycles/--seconds or until a stop signal.
+  const double script_duration_s = setup.sim != nullptr ? setup.sim->script_duration_s() : 0.0;
+  auto cycles = cycles_to_run(options, cfg, script_duration_s);
   if (!cycles) return fail(std::move(cycles).error());
   setup.cycles = *cycles;
+  // Power on last, just before the RT thread starts: a CAN drive's deadline monitoring must
+  // not run while models load.
+  if (auto activated = device.activate(); !activated) {
+    return fail(core::make_error(cfg.device.source_path.string() + ": " +
+                                 activated.error().message));
+  }
   setup.arena->seal();  // from here on nothing may be carved from the arena
   return {};
 }
@@ -235,6 +271,10 @@ void collect_result(const RunSetup& setup, RunResult& result) {
   result.arena_bytes_used = setup.arena->used_bytes();
   result.arena_bytes_capacity = setup.arena->capacity_bytes();
   result.log_records_dropped = setup.log->dropped();
+  if (const auto* can = dynamic_cast<const hal::socketcan::CanopenDevice*>(setup.device.get())) {
+    result.can = can->diagnostics();
+    result.can_faults = can->fault_report();
+  }
 }
 
 }  // namespace
@@ -249,8 +289,10 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   RunResult result;
   result.scene_file = options.scene_file;
   result.scene_name = setup.scene.name;
-  result.hal = options.hal;
+  result.hal = setup.backend;
+  result.device_file = setup.scene.device.source_path;
   result.time_source = options.time_source == TimeSource::real ? "real" : "simulated";
+  result.slow_motion = options.slow_motion;
   result.period_ns = setup.scene.loop.period_ns;
   result.requested_cycles = setup.cycles;
   for (const auto& instrument : setup.scene.instruments)

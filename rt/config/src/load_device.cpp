@@ -61,8 +61,10 @@ constexpr std::size_t kCanopenBackend = 1;
 // objects; the SYNC period a u32 of microseconds (0x1006) but a haptic loop needs <= 100 ms.
 constexpr IntRange kNodeIdRange{1, 127};
 constexpr IntRange kU32Range{0, 0xFFFF'FFFF};
-constexpr IntRange kBitrateRange{10'000, 1'000'000};
-constexpr IntRange kSyncPeriodRangeUs{100, 100'000};
+constexpr IntRange kBitrateRange{0, 1'000'000};
+constexpr std::int64_t kMinRealBitrate = 10'000;
+constexpr IntRange kSyncPeriodRangeUs{0, 100'000};
+constexpr std::int64_t kMinSyncPeriodUs = 100;
 constexpr IntRange kHeartbeatRangeMs{1, 65'535};
 constexpr IntRange kSdoTimeoutRangeMs{1, 10'000};
 constexpr IntRange kBootTimeoutRangeMs{1, 60'000};
@@ -316,11 +318,21 @@ CanopenConfig read_canopen(TableReader& table, ErrorSink& errors) {
   if (errors.ok() && (bus.interface.empty() || bus.interface.size() > 15)) {
     table.fail_value("interface", ": expected 1..15 characters (a Linux interface name)");
   }
-  bus.bitrate = static_cast<std::uint32_t>(
-      table.optional_int("bitrate", 1'000'000, kBitrateRange, "bits per second"));
+  bus.bitrate = static_cast<std::uint32_t>(table.optional_int(
+      "bitrate", 1'000'000, kBitrateRange, "bits per second, 0 = virtual bus"));
+  if (errors.ok() && bus.bitrate != 0 && bus.bitrate < kMinRealBitrate) {
+    table.fail_value("bitrate", ": expected 0 (a virtual bus, no load limit) or 10000 to "
+                                "1000000 (bits per second, as set with ip link)");
+  }
   bus.sync_period_ns =
-      table.required_int("sync_period_us", kSyncPeriodRangeUs, "microseconds") *
+      table.optional_int("sync_period_us", 0, kSyncPeriodRangeUs,
+                         "microseconds, 0 = the loop period") *
       kNanosecondsPerMicrosecond;
+  if (errors.ok() && bus.sync_period_ns != 0 &&
+      bus.sync_period_ns < kMinSyncPeriodUs * kNanosecondsPerMicrosecond) {
+    table.fail_value("sync_period_us", ": expected 0 (SYNC every loop period) or 100 to 100000 "
+                                       "(microseconds, a whole multiple of the loop period)");
+  }
   bus.master_node_id = static_cast<std::uint8_t>(
       table.optional_int("master_node_id", 127, kNodeIdRange, "node id of the master"));
   bus.master_heartbeat_ns =
@@ -359,6 +371,7 @@ CanopenConfig read_canopen(TableReader& table, ErrorSink& errors) {
                      ": expected at least twice drive_heartbeat_ms = " +
                          std::to_string(bus.drive_heartbeat_ns / kNanosecondsPerMillisecond));
   }
+  // With sync_period_us = 0 the loop period decides; the master checks it at configure.
   if (errors.ok() && bus.rpdo_timeout_ns < 2 * bus.sync_period_ns) {
     table.fail_value("rpdo_timeout_ms", ": expected at least two SYNC periods (sync_period_us = " +
                                             std::to_string(bus.sync_period_ns / 1000) + ")");

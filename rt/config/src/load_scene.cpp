@@ -262,7 +262,10 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
   const std::filesystem::path device_path = scene.required_file("device", true, &device_display);
   scene.finish();
   bool device_loaded = false;
-  if (!device_path.empty()) {
+  if (options.device_file) {
+    device_display = *options.device_file;
+  }
+  if (!device_path.empty() || options.device_file) {
     auto device = load_device(device_display);
     if (!device) {
       device_error = std::move(device).error();

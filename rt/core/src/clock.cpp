@@ -25,4 +25,10 @@ void MonotonicClock::sleep_until_ns(std::int64_t deadline_ns) noexcept {
   }
 }
 
+std::int64_t SlowMotionClock::now_ns() noexcept { return wall_.now_ns() / factor_; }
+
+void SlowMotionClock::sleep_until_ns(std::int64_t deadline_ns) noexcept {
+  wall_.sleep_until_ns(deadline_ns * factor_);
+}
+
 }  // namespace trainer::core

@@ -54,7 +54,7 @@
 #include "model_spec.hpp"  // tools/modelc: a model definition → the modal builder's spec
 #include "property_support.hpp"
 #include "trainer/app/haptic_app.hpp"
-#include "trainer/app/sim_wiring.hpp"
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/arena.hpp"
 #include "trainer/hal/joint_scale.hpp"

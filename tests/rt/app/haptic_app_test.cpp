@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "trainer/app/sim_wiring.hpp"
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/hal_sim/sim_device.hpp"
 

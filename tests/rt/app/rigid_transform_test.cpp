@@ -14,7 +14,7 @@
 
 #include "trainer/app/haptic_app.hpp"
 #include "trainer/app/report.hpp"
-#include "trainer/app/sim_wiring.hpp"
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/hal_sim/sim_device.hpp"
 

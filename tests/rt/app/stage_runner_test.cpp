@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "trainer/app/haptic_app.hpp"
-#include "trainer/app/sim_wiring.hpp"
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/app/stage_runner.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/hal_sim/sim_device.hpp"

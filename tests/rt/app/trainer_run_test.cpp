@@ -154,5 +154,43 @@ TEST(TrainerRun, BadSceneAndBackendAreRefusedWithMessages) {
   EXPECT_NE(r2.error().message.find("socketcan"), std::string::npos);
 }
 
+std::filesystem::path canopen_device() {
+  return std::filesystem::path(TRAINER_SOURCE_DIR) / "config/devices/canopen_vcan.toml";
+}
+
+TEST(TrainerRun, TheDeviceFileOptionPicksTheBackend) {
+  // --device with a canopen file: simulated time cannot drive real drives.
+  RunOptions options = simulated(10);
+  options.device_file = canopen_device();
+  auto refused = run_trainer(options);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("names backend 'canopen'"), std::string::npos)
+      << refused.error().message;
+  EXPECT_NE(refused.error().message.find("--hal sim"), std::string::npos);
+
+  // --hal sim runs the same file's mechanism on the simulated bench.
+  options.hal = "sim";
+  auto simulated_bench = run_trainer(options);
+  ASSERT_TRUE(simulated_bench) << simulated_bench.error().message;
+  EXPECT_EQ(simulated_bench->hal, "sim");
+  EXPECT_EQ(simulated_bench->device_file, canopen_device());
+  EXPECT_EQ(simulated_bench->loop.cycles, 10U);
+  EXPECT_FALSE(simulated_bench->can.has_value());
+}
+
+TEST(TrainerRun, ACanInterfaceThatIsNotThereFailsConfigureNamingIt) {
+  // In real time the canopen backend opens the file's interface (vcan0), which this test
+  // machine does not have (the bench VM does): configure fails before anything is armed.
+  RunOptions options = simulated(10);
+  options.time_source = TimeSource::real;
+  options.apply_rt_settings = false;
+  options.device_file = canopen_device();
+  auto result = run_trainer(options);
+  if (result) GTEST_SKIP() << "this machine has a CAN interface vcan0 with drives on it";
+  const std::string& message = result.error().message;
+  EXPECT_NE(message.find("canopen_vcan.toml"), std::string::npos) << message;
+  EXPECT_NE(message.find("'vcan0'"), std::string::npos) << message;
+}
+
 }  // namespace
 }  // namespace trainer::app

@@ -398,8 +398,8 @@ TEST(CanopenDeviceFile, LoadsTheBusAndEveryJointsDrive) {
   EXPECT_EQ(device->backend, "canopen");
   const CanopenConfig& bus = device->canopen;
   EXPECT_EQ(bus.interface, "vcan0");
-  EXPECT_EQ(bus.bitrate, 1'000'000U);
-  EXPECT_EQ(bus.sync_period_ns, 1'000'000);
+  EXPECT_EQ(bus.bitrate, 0U);  // vcan: a virtual bus
+  EXPECT_EQ(bus.sync_period_ns, 0);  // SYNC every loop period
   EXPECT_EQ(bus.master_node_id, 127);
   EXPECT_EQ(bus.master_heartbeat_ns, 10'000'000);
   EXPECT_EQ(bus.drive_heartbeat_consumer_ns, 30'000'000);
@@ -469,8 +469,10 @@ const CanopenErrorCase kCanopenErrorCases[] = {
      "instrument[0].pitch.motor_rated_torque_nm = 0 is out of range: expected more than 0"},
     {"interface_too_long", "interface = \"vcan0\"", "interface = \"can_interface_16\"",
      "canopen.interface = \"can_interface_16\": expected 1..15 characters"},
-    {"sync_too_fast", "sync_period_us = 1000", "sync_period_us = 50",
-     "canopen.sync_period_us = 50 is out of range: expected 100 to 100000 (microseconds)"},
+    {"sync_too_fast", "sync_period_us = 0 ", "sync_period_us = 50 ",
+     "canopen.sync_period_us = 50: expected 0 (SYNC every loop period) or 100 to 100000"},
+    {"sync_too_slow", "sync_period_us = 0 ", "sync_period_us = 100001 ",
+     "canopen.sync_period_us = 100001 is out of range: expected 0 to 100000"},
     {"consumer_shorter_than_two_master_beats", "drive_heartbeat_consumer_ms = 30",
      "drive_heartbeat_consumer_ms = 15",
      "canopen.drive_heartbeat_consumer_ms = 15: expected at least twice master_heartbeat_ms = "
@@ -478,8 +480,6 @@ const CanopenErrorCase kCanopenErrorCases[] = {
     {"master_consumer_too_short", "drive_heartbeat_timeout_ms = 30",
      "drive_heartbeat_timeout_ms = 19",
      "canopen.drive_heartbeat_timeout_ms = 19: expected at least twice drive_heartbeat_ms = 10"},
-    {"rpdo_deadline_shorter_than_two_syncs", "rpdo_timeout_ms = 10", "rpdo_timeout_ms = 1",
-     "canopen.rpdo_timeout_ms = 1: expected at least two SYNC periods (sync_period_us = 1000)"},
     {"abort_option_unknown", "abort_connection = \"quick_stop\"",
      "abort_connection = \"ignore\"",
      "canopen.abort_connection = \"ignore\": expected one of: fault_signal, disable_voltage, "
@@ -487,12 +487,24 @@ const CanopenErrorCase kCanopenErrorCases[] = {
     {"digital_node_not_a_drive", "digital_inputs_node = 1", "digital_inputs_node = 42",
      "canopen.digital_inputs_node = 42: expected -1 or the node_id of one of the joints' "
      "drives"},
-    {"unknown_canopen_key", "bitrate = 1000000", "bitrat = 1000000",
+    {"bitrate_below_real_buses", "bitrate = 0 ", "bitrate = 5000 ",
+     "canopen.bitrate = 5000: expected 0 (a virtual bus, no load limit) or 10000 to 1000000"},
+    {"unknown_canopen_key", "bitrate = 0 ", "bitrat = 0 ",
      "unknown key 'canopen.bitrat'"},
 };
 
 INSTANTIATE_TEST_SUITE_P(EveryMistake, CanopenErrorTest, ::testing::ValuesIn(kCanopenErrorCases),
                          [](const auto& param_info) { return std::string(param_info.param.name); });
+
+TEST_F(DeviceFileTest, AnRpdoDeadlineShorterThanTwoSyncsIsRefusedAtItsLine) {
+  const std::string text = read_text(repo_path("config/devices/canopen_vcan.toml"));
+  const auto edited = replace_first(text, "sync_period_us = 0 ", "sync_period_us = 6000 ");
+  const auto path = write("can.toml", edited.text);
+  expect_contains(error_message(load_device(path)),
+                  path.string() + ":" + std::to_string(line_of(edited.text, "rpdo_timeout_ms")) +
+                      ": canopen.rpdo_timeout_ms = 10: expected at least two SYNC periods "
+                      "(sync_period_us = 6000)");
+}
 
 TEST_F(DeviceFileTest, CanopenWithoutItsTableIsAMissingTable) {
   const std::string text = read_text(repo_path("config/devices/canopen_vcan.toml"));

@@ -15,6 +15,7 @@
 #include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/loop/periodic_loop.hpp"
+#include "trainer/hal_socketcan/canopen_device.hpp"
 #include "trainer/loop/rt_settings.hpp"
 
 namespace trainer::app {
@@ -22,12 +23,17 @@ namespace trainer::app {
 enum class TimeSource : std::uint8_t {
   real,       // CLOCK_MONOTONIC, real sleeps: the appliance
   simulated,  // a manual clock: the loop and the simulated device run as fast as they can,
-              // deterministically (offline runs, tests, golden traces); sim HAL only
+              // deterministically (offline runs, tests, golden traces); sim backend only
 };
 
 struct RunOptions {
   std::filesystem::path scene_file;
-  std::string hal = "sim";
+  // Replaces the device file the scene names (trainer --device FILE); the scene is checked
+  // against it as if it named it.
+  std::optional<std::filesystem::path> device_file;
+  // "device": the backend the device file names ([device] backend); "sim": the simulated
+  // bench with the device file's mechanism, whatever backend the file names.
+  std::string hal = "device";
   std::optional<std::uint64_t> cycles;  // run length; default: the trainee script's length
   std::optional<double> seconds;
   // Upper bound on the run length whatever set it (cycles, seconds, the script's end, or a run
@@ -37,6 +43,9 @@ struct RunOptions {
   // file; the report shows what ran).
   config::LoopOverrides loop_overrides;
   TimeSource time_source = TimeSource::real;
+  // Real time slowed down by this whole factor (core::SlowMotionClock): for emulators (the
+  // bench VM runs code ~20x slower than the hardware) and debugging. 1 = the appliance.
+  std::int64_t slow_motion = 1;
   bool apply_rt_settings = true;  // SCHED_FIFO, affinity, mlockall from the scene's [loop]
   bool arm = true;                // issue the explicit reset that arms the safety chain
   // Called from the supervisor thread about 30 times a second with the newest snapshot.
@@ -48,8 +57,10 @@ struct RunOptions {
 struct RunResult {
   std::filesystem::path scene_file;
   std::string scene_name;
-  std::string hal;
+  std::string hal;  // the backend that ran: "sim" or "canopen"
+  std::filesystem::path device_file;
   std::string time_source;
+  std::int64_t slow_motion = 1;
   std::int64_t period_ns = 0;
   std::uint64_t requested_cycles = 0;
   loop::LoopStats loop;
@@ -73,6 +84,9 @@ struct RunResult {
   double wall_time_s = 0.0;
   std::vector<std::string> instrument_names;
   std::vector<LoadedModelInfo> models;
+  // CAN backend only: the bus's counters and the device's latched faults, decoded.
+  std::optional<hal::socketcan::CanDiagnostics> can;
+  std::string can_faults;
 };
 
 core::Expected<RunResult> run_trainer(const RunOptions& options);

@@ -99,7 +99,8 @@ std::string_view to_string(AbortConnectionOption option) noexcept;
 struct CanopenConfig {
   std::string interface;                   // SocketCAN interface name, e.g. "can0", "vcan0"
   std::uint32_t bitrate = 1'000'000;       // bit/s of the bus (set with ip link): bus-load check
-  std::int64_t sync_period_ns = 0;         // SYNC period; a whole multiple of the loop period
+  std::int64_t sync_period_ns = 0;         // SYNC period, a whole multiple of the loop period;
+                                           // 0 = every loop period
   std::uint8_t master_node_id = 0;         // node id of the master's heartbeat (0x700 + id)
   std::int64_t master_heartbeat_ns = 0;    // master's heartbeat producer time
   std::int64_t drive_heartbeat_consumer_ns = 0;  // 0x1016 on every drive: master lost after

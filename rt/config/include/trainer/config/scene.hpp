@@ -120,6 +120,9 @@ struct LoadOptions {
   // When false, a trajectory script path is resolved but not required to exist (for checking
   // a scene on a machine that does not have the recordings).
   bool require_script_file = true;
+  // When set, this device file replaces the one the scene names ([scene] device) and the scene
+  // is checked against it (trainer --device FILE).
+  std::optional<std::filesystem::path> device_file{};
 };
 
 // Values given on a command line (trainer, jitter) that replace the scene's [loop] keys of the

@@ -22,6 +22,23 @@ class MonotonicClock final : public Clock {
   void sleep_until_ns(std::int64_t deadline_ns) noexcept override;
 };
 
+// CLOCK_MONOTONIC slowed down by a whole factor: now_ns() = CLOCK_MONOTONIC / factor, and
+// sleeps last `factor` times longer. Two processes with the same factor share one time line
+// (the trainer and simdrive in the bench VM), so periods, heartbeats and deadlines keep their
+// ratios while an emulator that runs code 20x slower than the hardware keeps up. A tool for
+// emulators and debugging, never the appliance's setting: timing measured on it means nothing.
+class SlowMotionClock final : public Clock {
+ public:
+  explicit SlowMotionClock(std::int64_t factor) noexcept : factor_(factor < 1 ? 1 : factor) {}
+  std::int64_t now_ns() noexcept override;
+  void sleep_until_ns(std::int64_t deadline_ns) noexcept override;
+  std::int64_t factor() const noexcept { return factor_; }
+
+ private:
+  MonotonicClock wall_;
+  std::int64_t factor_;
+};
+
 // Deterministic clock for tests and offline runs: time moves only when told to.
 // sleep_until_ns jumps to the deadline plus the injected wake-up latency (applied to every
 // sleep until changed).

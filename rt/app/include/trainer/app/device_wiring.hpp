@@ -1,0 +1,27 @@
+// Turns a scene's device description into a HAL backend. Only the app names concrete
+// backends; this is where they are wired: the simulated bench (hal/sim) and the hardware
+// backends a device file can name ([device] backend).
+#pragma once
+
+#include <memory>
+
+#include "trainer/config/scene.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/hal/device.hpp"
+#include "trainer/hal_sim/sim_device.hpp"
+#include "trainer/hal_socketcan/canopen_device.hpp"
+
+namespace trainer::app {
+
+hal::sim::SimDeviceParams sim_params_from(const config::SceneConfig& scene);
+
+// The CiA 402 master's parameters: the device file's [canopen] table and drives (channel
+// order = instrument * 5 + joint, as on the simulated bench), the scene's loop period.
+hal::socketcan::CanopenDeviceParams canopen_params_from(const config::SceneConfig& scene);
+
+// The hardware backend the scene's device file names, created but not configured (configure()
+// opens the bus and checks every node and the parameters). `clock` must outlive the device.
+core::Expected<std::unique_ptr<hal::Device>> make_hardware_device(
+    const config::SceneConfig& scene, core::Clock& clock);
+
+}  // namespace trainer::app
