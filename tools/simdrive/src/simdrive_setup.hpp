@@ -1,0 +1,45 @@
+// simdrive's setup: a scene and a CANopen device file become the parameters of a SimDriveBus
+// (hal/simdrive), so the drives present exactly the identities, node ids, rated torques and
+// mechanism the trainer's master will check against the same file. The conversion of the
+// mechanism into the plant's parameters is the one the trainer's sim backend uses
+// (rt/app device_wiring.cpp, sim_params_from). Setup path: allocates, returns errors that name
+// the file and key.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "trainer/config/device.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/hal_simdrive/sim_drive_bus.hpp"
+
+namespace trainer::tools::simdrive {
+
+// Deliberate mismatches for testing a master's checks (the program's --vendor-id,
+// --product-code, --rated-torque-scale): every drive reports them instead of the file's.
+struct IdentityOverrides {
+  std::optional<std::uint32_t> vendor_id;
+  std::optional<std::uint32_t> product_code;
+  double rated_torque_scale = 1.0;  // 0x6076 = the file's rated torque times this
+};
+
+// The drives of `device` (backend "canopen") with `trainee_script` as the simulated hand.
+// Node i drives channel i = instrument * 5 + joint; identity, rated torque (rounded to mN·m)
+// and node id from each joint's [instrument.<joint>] keys; revision from the file when given
+// (else 1), serial number = node id. Plant time per SYNC: canopen.sync_period_us, or when that
+// is 0 ("SYNC every loop period") `loop_period_ns`, the trainer's loop period.
+core::Expected<hal::simdrive::SimDriveBusParams> bus_params_from(
+    const config::DeviceConfig& device, const std::string& trainee_script,
+    std::int64_t loop_period_ns, const IdentityOverrides& overrides = {});
+
+// The scene (its trainee script and instruments) with another device file in place of the
+// one it names: the program's --scene/--device. Refuses a device file whose backend is not
+// "canopen" or that lacks an instrument the scene uses, naming both files.
+core::Expected<config::SceneConfig> load_scene_with_device(
+    const std::filesystem::path& scene_file,
+    const std::optional<std::filesystem::path>& device_file);
+
+}  // namespace trainer::tools::simdrive
