@@ -159,6 +159,8 @@ class SimDriveNode final : private canopen::ObjectDictionaryObserver {
   std::uint32_t digital_outputs() const noexcept;  // 0x60FE:1 & 0x60FE:2
   const canopen::ObjectDictionary& dictionary() const noexcept { return od_; }
   canopen::ObjectDictionary& dictionary() noexcept { return od_; }
+  // The consumer of the producers in 0x1016 (e.g. when the master's last heartbeat came).
+  const canopen::HeartbeatConsumer& heartbeat_consumer() const noexcept { return consumer_; }
   const canopen::PdoMapping& rpdo_mapping(std::size_t pdo_number) const noexcept;
   const canopen::PdoMapping& tpdo_mapping(std::size_t pdo_number) const noexcept;
 

@@ -1,0 +1,366 @@
+// The trainer's CiA 402 master (hal/socketcan CanopenDevice) against the simulated drives of
+// config/devices/canopen_vcan.toml over a socketpair: the bus polled in its own thread on the
+// real monotonic clock (configure() blocks on SDO answers), the master cycled every 1 ms from
+// the test thread as the trainer's loop would. Checked: identity and rated-torque mismatches
+// fail configure naming node and object; cycles enable every drive and the commanded efforts
+// reach the plant; what each injected fault does to the master's return codes and within how
+// many cycles; a killed master makes every drive remove its torque within the consumer time.
+//
+// Timing: the file's identities, node ids, rated torques, mechanism, abort-connection option
+// and heartbeat PERIODS are used as they are; the deadlines (drive heartbeat consumer, master's
+// drive heartbeat timeout, RPDO deadline, SDO timeout) are widened to 200 ms / 500 ms so two
+// threads on a shared 2-core machine do not trip them by being descheduled.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <optional>
+#include <thread>
+
+#include "simdrive_setup.hpp"
+#include "simdrive_test_support.hpp"
+#include "trainer/config/device.hpp"
+#include "trainer/core/clock.hpp"
+#include "trainer/hal_socketcan/canopen_device.hpp"
+
+namespace trainer::hal::simdrive {
+namespace {
+
+using socketcan::CanFault;
+using socketcan::CanopenDevice;
+using socketcan::CanopenDeviceParams;
+
+constexpr std::int64_t kLoopPeriodNs = 1'000'000;
+constexpr std::int64_t kWideDeadlineNs = 200'000'000;
+
+std::int64_t monotonic_now() {
+  core::MonotonicClock clock;
+  return clock.now_ns();
+}
+
+config::DeviceConfig vcan_device() {
+  auto device =
+      config::load_device(std::string(TRAINER_SOURCE_DIR) + "/config/devices/canopen_vcan.toml");
+  EXPECT_TRUE(device) << (device ? "" : device.error().message);
+  config::DeviceConfig config = std::move(*device);
+  config.canopen.drive_heartbeat_consumer_ns = kWideDeadlineNs;
+  config.canopen.drive_heartbeat_timeout_ns = kWideDeadlineNs;
+  config.canopen.rpdo_timeout_ns = kWideDeadlineNs;
+  config.canopen.sdo_timeout_ns = 500'000'000;
+  return config;
+}
+
+// What rt/app's canopen_params_from() makes of the device file (the app is not linked here).
+CanopenDeviceParams master_params(const config::DeviceConfig& device) {
+  const config::CanopenConfig& bus = device.canopen;
+  CanopenDeviceParams params;
+  params.name = device.name;
+  params.interface = bus.interface;
+  params.bitrate = bus.bitrate;
+  params.loop_period_ns = kLoopPeriodNs;
+  params.sync_period_ns = bus.sync_period_ns > 0 ? bus.sync_period_ns : kLoopPeriodNs;
+  params.master_node_id = bus.master_node_id;
+  params.master_heartbeat_ns = bus.master_heartbeat_ns;
+  params.drive_heartbeat_consumer_ns = bus.drive_heartbeat_consumer_ns;
+  params.drive_heartbeat_ns = bus.drive_heartbeat_ns;
+  params.drive_heartbeat_timeout_ns = bus.drive_heartbeat_timeout_ns;
+  params.rpdo_timeout_ns = bus.rpdo_timeout_ns;
+  params.abort_connection_option = static_cast<std::uint8_t>(bus.abort_connection);
+  params.sdo_timeout_ns = bus.sdo_timeout_ns;
+  params.boot_timeout_ns = bus.boot_timeout_ns;
+  params.digital_inputs_node = bus.digital_inputs_node;
+  params.digital_outputs_node = bus.digital_outputs_node;
+  for (std::size_t i = 0; i < device.instruments.size(); ++i) {
+    const config::InstrumentDeviceConfig& instrument = device.instruments[i];
+    for (std::size_t j = 0; j < instrument.joints.size(); ++j) {
+      const config::JointConfig& joint = instrument.joints[j];
+      const std::string joint_name(config::to_string(static_cast<config::JointId>(j)));
+      socketcan::DriveParams drive;
+      drive.channel_name = instrument.name + "." + joint_name;
+      drive.config_key = "instrument[" + std::to_string(i) + "]." + joint_name;
+      drive.node_id = joint.canopen.node_id;
+      drive.vendor_id = joint.canopen.vendor_id;
+      drive.product_code = joint.canopen.product_code;
+      drive.revision = joint.canopen.revision;
+      drive.motor_rated_torque_nm = joint.canopen.motor_rated_torque_nm;
+      drive.scale = config::joint_scale(joint);
+      params.drives.push_back(std::move(drive));
+    }
+  }
+  return params;
+}
+
+struct CycleResult {
+  hal::ReturnCode encoders = hal::ReturnCode::ok;
+  hal::ReturnCode status = hal::ReturnCode::ok;
+  hal::ReturnCode actuators = hal::ReturnCode::ok;
+  bool deactivate() const {
+    return encoders == hal::ReturnCode::deactivate || status == hal::ReturnCode::deactivate ||
+           actuators == hal::ReturnCode::deactivate;
+  }
+  bool error() const {
+    return encoders == hal::ReturnCode::error || status == hal::ReturnCode::error ||
+           actuators == hal::ReturnCode::error;
+  }
+};
+
+// The drives in a thread, the master in the test thread.
+class MasterAndDrives {
+ public:
+  explicit MasterAndDrives(const tools::simdrive::IdentityOverrides& overrides = {})
+      : device_(vcan_device()) {
+    auto pair = socketcan::make_transport_pair("master", "simdrive");
+    EXPECT_TRUE(pair);
+    auto params =
+        tools::simdrive::bus_params_from(device_, "builtin:hold", kLoopPeriodNs, overrides);
+    EXPECT_TRUE(params) << (params ? "" : params.error().message);
+    auto bus = SimDriveBus::create(std::move(*params), std::move(pair->b));
+    EXPECT_TRUE(bus) << (bus ? "" : bus.error().message);
+    bus_ = std::move(*bus);
+    master_ = std::make_unique<CanopenDevice>(clock_, master_params(device_), std::move(pair->a));
+    bus_->power_on(monotonic_now());
+    thread_ = std::thread([this] {
+      while (!stop_.load(std::memory_order_acquire)) {
+        const std::int64_t now = monotonic_now();
+        const std::int64_t deadline = bus_->poll(now);
+        (void)bus_->transport().wait_readable(
+            std::clamp<std::int64_t>(deadline - now, 0, 1'000'000));
+      }
+    });
+  }
+  ~MasterAndDrives() { stop_drives(); }
+
+  // After this the bus, its plant and its events may be read from the test thread.
+  void stop_drives() {
+    stop_.store(true, std::memory_order_release);
+    if (thread_.joinable()) thread_.join();
+  }
+
+  CanopenDevice& master() { return *master_; }
+  SimDriveBus& bus() { return *bus_; }
+  std::size_t channels() const { return master_->encoder_count(); }
+  const std::vector<hal::EncoderSample>& samples() const { return samples_; }
+  const std::vector<hal::ActuatorStatus>& status() const { return status_; }
+
+  void bring_up() {
+    auto configured = master_->configure();
+    ASSERT_TRUE(configured) << configured.error().message;
+    auto activated = master_->activate();
+    ASSERT_TRUE(activated) << activated.error().message;
+    samples_.assign(channels(), {});
+    status_.assign(channels(), {});
+    commands_.assign(channels(), {});
+    next_cycle_ns_ = clock_.now_ns();
+  }
+  // Every channel enabled with `fraction` of its drive's maximum effort, alternating in sign.
+  void command(double fraction) {
+    const CanopenDeviceParams& params = master_->params();
+    for (std::size_t i = 0; i < channels(); ++i) {
+      const double max_effort = params.drives[i].scale.max_effort();
+      commands_[i] = {static_cast<float>((i % 2 == 0 ? fraction : -fraction) * max_effort), true};
+    }
+  }
+  // One loop cycle as the trainer runs it (read, status, write), then wait for the next period.
+  CycleResult cycle() {
+    CycleResult result;
+    result.encoders = master_->read_encoders(samples_);
+    result.status = master_->read_actuator_status(status_);
+    result.actuators = master_->write_actuators(commands_);
+    next_cycle_ns_ += kLoopPeriodNs;
+    clock_.sleep_until_ns(next_cycle_ns_);
+    if (clock_.now_ns() > next_cycle_ns_ + 20 * kLoopPeriodNs)
+      next_cycle_ns_ = clock_.now_ns();  // no bursts
+    return result;
+  }
+  bool all_enabled() const {
+    return std::all_of(status_.begin(), status_.end(),
+                       [](const hal::ActuatorStatus& s) { return s.enabled; });
+  }
+
+ private:
+  config::DeviceConfig device_;
+  core::MonotonicClock clock_;
+  std::unique_ptr<SimDriveBus> bus_;
+  std::unique_ptr<CanopenDevice> master_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::vector<hal::EncoderSample> samples_;
+  std::vector<hal::ActuatorStatus> status_;
+  std::vector<hal::ActuatorCommand> commands_;
+  std::int64_t next_cycle_ns_ = 0;
+};
+
+TEST(CanopenMasterAgainstSimDrive, AnIdentityMismatchFailsConfigureNamingTheNodeAndObject) {
+  tools::simdrive::IdentityOverrides wrong;
+  wrong.product_code = 0x00000403;
+  MasterAndDrives rig(wrong);
+  const auto configured = rig.master().configure();
+  ASSERT_FALSE(configured);
+  const std::string& message = configured.error().message;
+  EXPECT_NE(message.find("node 1 (left.pitch)"), std::string::npos) << message;
+  EXPECT_NE(message.find("0x1018:2"), std::string::npos) << message;
+  EXPECT_NE(message.find("0x00000403"), std::string::npos) << message;
+  EXPECT_NE(message.find("instrument[0].pitch.product_code"), std::string::npos) << message;
+  EXPECT_EQ(rig.master().state(), hal::LifecycleState::unconfigured);
+}
+
+TEST(CanopenMasterAgainstSimDrive, AWrongRatedTorqueFailsConfigureNamingTheNodeAndObject) {
+  tools::simdrive::IdentityOverrides wrong;
+  wrong.rated_torque_scale = 1.02;  // 61 mN·m for 60: beyond the master's 0.5 %
+  MasterAndDrives rig(wrong);
+  const auto configured = rig.master().configure();
+  ASSERT_FALSE(configured);
+  const std::string& message = configured.error().message;
+  EXPECT_NE(message.find("node 1 (left.pitch)"), std::string::npos) << message;
+  EXPECT_NE(message.find("0x6076"), std::string::npos) << message;
+  EXPECT_NE(message.find("61 mN"), std::string::npos) << message;
+}
+
+TEST(CanopenMasterAgainstSimDrive, CyclesEnableEveryDriveAndTheCommandedEffortsReachThePlant) {
+  MasterAndDrives rig;
+  rig.bring_up();
+  ASSERT_FALSE(HasFatalFailure());
+  rig.command(0.25);
+  int cycles_to_enable = -1;
+  for (int cycle = 0; cycle < 400; ++cycle) {
+    const CycleResult result = rig.cycle();
+    EXPECT_FALSE(result.deactivate()) << "cycle " << cycle << ": " << rig.master().fault_report();
+    if (cycles_to_enable < 0 && rig.all_enabled()) cycles_to_enable = cycle;
+  }
+  ASSERT_GE(cycles_to_enable, 0) << "the drives never all reached Operation enabled";
+  RecordProperty("cycles_to_enable", cycles_to_enable);
+  EXPECT_LE(cycles_to_enable, 10)
+      << "switch on, enable operation: one SYNC each (+ scheduling slack)";
+  EXPECT_EQ(rig.master().diagnostics().faults, 0U) << rig.master().fault_report();
+  const std::vector<hal::ActuatorStatus> reported = rig.status();
+  rig.stop_drives();
+  const CanopenDeviceParams& params = rig.master().params();
+  for (std::size_t i = 0; i < rig.channels(); ++i) {
+    const socketcan::DriveParams& drive = params.drives[i];
+    const double commanded = (i % 2 == 0 ? 0.25 : -0.25) * drive.scale.max_effort();
+    // One per-mille of the rated motor torque, at the joint: the quantum of 0x6071.
+    const double quantum = drive.motor_rated_torque_nm * 1e-3 * drive.scale.effort_per_amp() /
+                           drive.scale.torque_constant_nm_per_a;
+    EXPECT_NEAR(rig.bus().plant().applied_effort(i), commanded, quantum) << drive.channel_name;
+    EXPECT_NEAR(reported[i].applied_effort, commanded, quantum)
+        << drive.channel_name << " torque actual";
+    EXPECT_EQ(rig.bus().node(i).power_state(), canopen::PowerState::operation_enabled);
+  }
+  // Plant time = SYNCs x period, whatever the cycles' real timing was.
+  EXPECT_NEAR(rig.bus().plant().script_time_s(),
+              static_cast<double>(rig.bus().syncs_since_start()) * 1e-3, 1e-9);
+  EXPECT_GE(rig.bus().syncs_since_start(), 400U);
+}
+
+struct FaultCase {
+  const char* spec;
+  bool latches;       // the master returns deactivate (else: error, or nothing at all)
+  int within_cycles;  // ... within this many cycles of the fault's injection
+  CanFault first_fault;
+  bool errors;  // an `error` return (stale or invalid samples) within `within_cycles`
+};
+
+void PrintTo(const FaultCase& c, std::ostream* out) {
+  *out << c.spec;
+}
+
+class MasterSeesFault : public ::testing::TestWithParam<FaultCase> {};
+
+TEST_P(MasterSeesFault, WithinTheStatedCycles) {
+  const FaultCase& c = GetParam();
+  MasterAndDrives rig;
+  rig.bring_up();
+  ASSERT_FALSE(HasFatalFailure());
+  rig.command(0.2);
+  for (int cycle = 0; cycle < 50; ++cycle)
+    ASSERT_FALSE(rig.cycle().deactivate()) << rig.master().fault_report();
+  ASSERT_TRUE(rig.all_enabled());
+  ASSERT_TRUE(rig.bus().post(*parse_fault_spec(c.spec)));
+  int first_deactivate = -1;
+  int first_error = -1;
+  const int horizon = c.within_cycles + 100;
+  for (int cycle = 1; cycle <= horizon; ++cycle) {
+    const CycleResult result = rig.cycle();
+    if (first_deactivate < 0 && result.deactivate()) first_deactivate = cycle;
+    if (first_error < 0 && result.error()) first_error = cycle;
+  }
+  RecordProperty("first_deactivate_cycle", first_deactivate);
+  RecordProperty("first_error_cycle", first_error);
+  if (c.latches) {
+    ASSERT_GT(first_deactivate, 0) << c.spec << ": the master never latched";
+    EXPECT_LE(first_deactivate, c.within_cycles) << c.spec;
+    EXPECT_EQ(rig.master().diagnostics().first_fault, c.first_fault) << rig.master().fault_report();
+  } else {
+    EXPECT_EQ(first_deactivate, -1) << c.spec << ": " << rig.master().fault_report();
+  }
+  if (c.errors) {
+    ASSERT_GT(first_error, 0) << c.spec << ": no error return";
+    EXPECT_LE(first_error, c.within_cycles) << c.spec;
+  }
+  if (std::string(c.spec).rfind("encoder_jump", 0) == 0) {
+    EXPECT_EQ(first_error, -1);
+    rig.stop_drives();
+    const hal::JointScale& scale = rig.master().params().drives[0].scale;
+    const std::int64_t truth = scale.counts_from_position(rig.bus().plant().true_position(0));
+    // The master's sample is one SYNC older than the plant's state; the joint has settled.
+    EXPECT_NEAR(static_cast<double>(rig.samples()[0].counts - truth), 4096.0, 20.0)
+        << "the jump reaches the master's samples (the app's encoder-jump check is what reacts)";
+  }
+}
+
+// Cycle counts: a frame the master acts on arrives by the next cycle's drain; "stale" needs
+// kMaxPdoAgeSyncs (3) SYNCs without TPDO1; the master's heartbeat consumer needs its 200 ms.
+INSTANTIATE_TEST_SUITE_P(
+    EveryFault, MasterSeesFault,
+    ::testing::Values(
+        FaultCase{"emcy:node=3", true, 5, CanFault::emcy, false},
+        FaultCase{"bus_off", true, 5, CanFault::bus_off, false},
+        FaultCase{"reboot:node=4", true, 5, CanFault::node_rebooted, false},
+        FaultCase{"corrupt:node=2,mode=bits,count=0", true, 5, CanFault::drive_fault, false},
+        FaultCase{"silent:node=5", true, 260, CanFault::heartbeat_lost, true},
+        FaultCase{"drop:node=1", false, 8, CanFault::none, true},
+        FaultCase{"delay:node=1,ms=20", false, 8, CanFault::none, true},
+        FaultCase{"corrupt:node=1,count=0", false, 8, CanFault::none, true},
+        FaultCase{"lost_sync:node=1,count=0", false, 8, CanFault::none, true},
+        FaultCase{"encoder_jump:node=1,counts=4096", false, 8, CanFault::none, false}));
+
+TEST(CanopenMasterAgainstSimDrive,
+     AKilledMasterLeavesEveryDriveWithoutTorqueWithinItsConsumerTime) {
+  MasterAndDrives rig;
+  rig.bring_up();
+  ASSERT_FALSE(HasFatalFailure());
+  rig.command(0.2);
+  for (int cycle = 0; cycle < 100; ++cycle)
+    ASSERT_FALSE(rig.cycle().deactivate()) << rig.master().fault_report();
+  ASSERT_TRUE(rig.all_enabled());
+  // The trainer dies: no more cycles, no deactivate(). Its last heartbeat left at most one
+  // master heartbeat period (10 ms) before now.
+  const std::int64_t killed_ns = monotonic_now();
+  std::this_thread::sleep_for(std::chrono::milliseconds(2 * kWideDeadlineNs / 1'000'000));
+  rig.stop_drives();
+  const std::vector<DriveEvent> events = rig.bus().events().snapshot();
+  for (std::size_t i = 0; i < rig.bus().node_count(); ++i) {
+    const SimDriveNode& node = rig.bus().node(i);
+    const auto removed = test_support::of_kind(events, EventKind::torque_removed, node.node_id());
+    ASSERT_EQ(removed.size(), 1U) << "node " << int{node.node_id()};
+    EXPECT_STREQ(removed[0].cause, "master heartbeat lost");
+    // Measured from the master's last heartbeat as the drive heard it: more than the consumer
+    // time (CiA 301), and no later than the bus thread's wake-up after that deadline.
+    const canopen::NodeHeartbeatStatus* master = node.heartbeat_consumer().status(127);
+    ASSERT_NE(master, nullptr);
+    const std::int64_t after_heartbeat = removed[0].t_ns - master->last_heard_ns;
+    RecordProperty("node_" + std::to_string(node.node_id()) + "_removed_after_last_heartbeat_us",
+                   static_cast<int>(after_heartbeat / 1000));
+    EXPECT_GT(after_heartbeat, kWideDeadlineNs) << "node " << int{node.node_id()};
+    EXPECT_LE(after_heartbeat, kWideDeadlineNs + 20'000'000) << "node " << int{node.node_id()};
+    EXPECT_LE(master->last_heard_ns, killed_ns) << "the last heartbeat came before the kill";
+    EXPECT_GE(master->last_heard_ns, killed_ns - 15'000'000) << "a 10 ms producer";
+    EXPECT_EQ(node.power_state(), canopen::PowerState::switch_on_disabled)
+        << "quick stop (the file's 0x6007)";
+    EXPECT_EQ(rig.bus().plant().applied_effort(i), 0.0);
+  }
+}
+
+}  // namespace
+}  // namespace trainer::hal::simdrive
