@@ -1,0 +1,159 @@
+// The trainer's CiA 402 master (hal/socketcan CanopenDevice) as the simulated drives' tests
+// run it: the device file config/devices/canopen_vcan.toml turned into the master's parameters
+// as rt/app does (canopen_params_from; the app is not linked into these tests), its deadlines
+// widened (see kWideDeadlineNs), and cycled at 1 ms on the monotonic clock like the trainer's
+// loop: read_encoders, read_actuator_status, write_actuators.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "trainer/config/device.hpp"
+#include "trainer/core/clock.hpp"
+#include "trainer/hal_socketcan/canopen_device.hpp"
+
+namespace trainer::hal::simdrive::test_support {
+
+// The file's identities, node ids, rated torques, mechanism, abort-connection option and
+// heartbeat PERIODS are used as they are; the deadlines (drive heartbeat consumer, the master's
+// drive heartbeat timeout, RPDO deadline) become 200 ms and the SDO timeout 500 ms, so threads
+// and processes on a shared 2-core machine do not trip them by being descheduled.
+inline constexpr std::int64_t kLoopPeriodNs = 1'000'000;
+inline constexpr std::int64_t kWideDeadlineNs = 200'000'000;
+
+using socketcan::CanopenDevice;
+using socketcan::CanopenDeviceParams;
+
+inline std::int64_t monotonic_now() {
+  core::MonotonicClock clock;
+  return clock.now_ns();
+}
+
+inline config::DeviceConfig vcan_device() {
+  auto device =
+      config::load_device(std::string(TRAINER_SOURCE_DIR) + "/config/devices/canopen_vcan.toml");
+  EXPECT_TRUE(device) << (device ? "" : device.error().message);
+  config::DeviceConfig config = std::move(*device);
+  config.canopen.drive_heartbeat_consumer_ns = kWideDeadlineNs;
+  config.canopen.drive_heartbeat_timeout_ns = kWideDeadlineNs;
+  config.canopen.rpdo_timeout_ns = kWideDeadlineNs;
+  config.canopen.sdo_timeout_ns = 500'000'000;
+  return config;
+}
+
+// What rt/app's canopen_params_from() makes of the device file (the app is not linked here).
+inline CanopenDeviceParams master_params(const config::DeviceConfig& device) {
+  const config::CanopenConfig& bus = device.canopen;
+  CanopenDeviceParams params;
+  params.name = device.name;
+  params.interface = bus.interface;
+  params.bitrate = bus.bitrate;
+  params.loop_period_ns = kLoopPeriodNs;
+  params.sync_period_ns = bus.sync_period_ns > 0 ? bus.sync_period_ns : kLoopPeriodNs;
+  params.master_node_id = bus.master_node_id;
+  params.master_heartbeat_ns = bus.master_heartbeat_ns;
+  params.drive_heartbeat_consumer_ns = bus.drive_heartbeat_consumer_ns;
+  params.drive_heartbeat_ns = bus.drive_heartbeat_ns;
+  params.drive_heartbeat_timeout_ns = bus.drive_heartbeat_timeout_ns;
+  params.rpdo_timeout_ns = bus.rpdo_timeout_ns;
+  params.abort_connection_option = static_cast<std::uint8_t>(bus.abort_connection);
+  params.sdo_timeout_ns = bus.sdo_timeout_ns;
+  params.boot_timeout_ns = bus.boot_timeout_ns;
+  params.digital_inputs_node = bus.digital_inputs_node;
+  params.digital_outputs_node = bus.digital_outputs_node;
+  for (std::size_t i = 0; i < device.instruments.size(); ++i) {
+    const config::InstrumentDeviceConfig& instrument = device.instruments[i];
+    for (std::size_t j = 0; j < instrument.joints.size(); ++j) {
+      const config::JointConfig& joint = instrument.joints[j];
+      const std::string joint_name(config::to_string(static_cast<config::JointId>(j)));
+      socketcan::DriveParams drive;
+      drive.channel_name = instrument.name + "." + joint_name;
+      drive.config_key = "instrument[" + std::to_string(i) + "]." + joint_name;
+      drive.node_id = joint.canopen.node_id;
+      drive.vendor_id = joint.canopen.vendor_id;
+      drive.product_code = joint.canopen.product_code;
+      drive.revision = joint.canopen.revision;
+      drive.motor_rated_torque_nm = joint.canopen.motor_rated_torque_nm;
+      drive.scale = config::joint_scale(joint);
+      params.drives.push_back(std::move(drive));
+    }
+  }
+  return params;
+}
+
+struct CycleResult {
+  hal::ReturnCode encoders = hal::ReturnCode::ok;
+  hal::ReturnCode status = hal::ReturnCode::ok;
+  hal::ReturnCode actuators = hal::ReturnCode::ok;
+  bool deactivate() const {
+    return encoders == hal::ReturnCode::deactivate || status == hal::ReturnCode::deactivate ||
+           actuators == hal::ReturnCode::deactivate;
+  }
+  bool error() const {
+    return encoders == hal::ReturnCode::error || status == hal::ReturnCode::error ||
+           actuators == hal::ReturnCode::error;
+  }
+};
+
+// The master on `transport`, cycled by the caller's thread.
+class TrainerMaster {
+ public:
+  TrainerMaster(const config::DeviceConfig& device, socketcan::CanTransport transport)
+      : master_(
+            std::make_unique<CanopenDevice>(clock_, master_params(device), std::move(transport))) {}
+
+  CanopenDevice& master() { return *master_; }
+  std::size_t channels() const { return master_->encoder_count(); }
+  const std::vector<hal::EncoderSample>& samples() const { return samples_; }
+  const std::vector<hal::ActuatorStatus>& status() const { return status_; }
+
+  void bring_up() {
+    auto configured = master_->configure();
+    ASSERT_TRUE(configured) << configured.error().message;
+    auto activated = master_->activate();
+    ASSERT_TRUE(activated) << activated.error().message;
+    samples_.assign(channels(), {});
+    status_.assign(channels(), {});
+    commands_.assign(channels(), {});
+    next_cycle_ns_ = clock_.now_ns();
+  }
+  // Every channel enabled with `fraction` of its drive's maximum effort, alternating in sign.
+  void command(double fraction) {
+    const CanopenDeviceParams& params = master_->params();
+    for (std::size_t i = 0; i < channels(); ++i) {
+      const double max_effort = params.drives[i].scale.max_effort();
+      commands_[i] = {static_cast<float>((i % 2 == 0 ? fraction : -fraction) * max_effort), true};
+    }
+  }
+  // One loop cycle as the trainer runs it (read, status, write), then wait for the next period.
+  CycleResult cycle() {
+    CycleResult result;
+    result.encoders = master_->read_encoders(samples_);
+    result.status = master_->read_actuator_status(status_);
+    result.actuators = master_->write_actuators(commands_);
+    next_cycle_ns_ += kLoopPeriodNs;
+    clock_.sleep_until_ns(next_cycle_ns_);
+    if (clock_.now_ns() > next_cycle_ns_ + 20 * kLoopPeriodNs)
+      next_cycle_ns_ = clock_.now_ns();  // no bursts
+    return result;
+  }
+  bool all_enabled() const {
+    return std::all_of(status_.begin(), status_.end(),
+                       [](const hal::ActuatorStatus& s) { return s.enabled; });
+  }
+
+ private:
+  core::MonotonicClock clock_;
+  std::unique_ptr<CanopenDevice> master_;
+  std::vector<hal::EncoderSample> samples_;
+  std::vector<hal::ActuatorStatus> status_;
+  std::vector<hal::ActuatorCommand> commands_;
+  std::int64_t next_cycle_ns_ = 0;
+};
+
+}  // namespace trainer::hal::simdrive::test_support
