@@ -6,12 +6,16 @@
 //   simdrive --scene config/scenes/cbd.toml --device config/devices/canopen_vcan.toml
 //            [--interface NAME] [--fault SPEC]... [--events FILE|-] [--vendor-id N]
 //            [--product-code N] [--rated-torque-scale F] [--exit-after-idle S] [--max-seconds S]
-//            [--period-us N] [--no-stdin] [--fd N]
+//            [--period-us N] [--slow-motion N] [--no-stdin] [--fd N]
 //
 // Fault SPECs (hal_simdrive/fault.hpp) on the command line are applied at once or scheduled
 // (at_sync / at_s count from the first NMT start); the same syntax on a stdin line applies a
 // fault at once. The loop waits in ppoll() on the CAN socket, stdin and a signalfd for
-// SIGINT/SIGTERM with the bus's next timer deadline as timeout. On exit it prints per node the
+// SIGINT/SIGTERM with the bus's next timer deadline as timeout. The protocol timers (heartbeats,
+// deadlines, at_s, delay) and the events log's t_ns run on CLOCK_MONOTONIC, or with
+// --slow-motion N on CLOCK_MONOTONIC / N: the trainer's --slow-motion N time line, so both
+// processes keep their heartbeat and deadline ratios under an emulator (core::SlowMotionClock).
+// --max-seconds and --exit-after-idle are real seconds. On exit it prints per node the
 // final NMT and power state, frames and faults.
 //
 // Exit status: 0 ended by a signal, --max-seconds or --exit-after-idle; 1 setup error (file,
@@ -98,6 +102,7 @@ int main(int argc, char** argv) {
   bool no_stdin = false;
   int inherited_fd = -1;
   std::int64_t period_us = 0;
+  std::int64_t slow_motion = 1;
   cli.add_option("--scene", scene_file, "scene file: its trainee script is the simulated hand")
       ->required()
       ->check(CLI::ExistingFile);
@@ -126,6 +131,10 @@ int main(int argc, char** argv) {
          "the trainer's loop period when it runs with --period-us (plant time per SYNC when "
          "canopen.sync_period_us = 0); default: the scene's loop.period_us")
       ->check(CLI::Range(std::int64_t{50}, std::int64_t{100000}));
+  cli.add_option(
+         "--slow-motion", slow_motion,
+         "protocol time = CLOCK_MONOTONIC / N, as the trainer's --slow-motion N (emulators)")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1000}));
   cli.add_option("--max-seconds", max_seconds, "exit after this many seconds")
       ->check(CLI::PositiveNumber);
   cli.add_flag("--no-stdin", no_stdin, "do not read fault SPECs from stdin");
@@ -228,10 +237,12 @@ int main(int argc, char** argv) {
             << drives.params().sync_period_ns / 1000 << " us, trainee " << scene->trainee.script
             << '\n';
 
+  // The bus's time line (the trainer's under --slow-motion) and the program's own real time.
+  const auto bus_now = [slow_motion] { return monotonic_ns() / slow_motion; };
   const std::int64_t start_ns = monotonic_ns();
-  drives.power_on(start_ns);
+  drives.power_on(bus_now());
   for (const sd::FaultSpec& spec : faults) {
-    if (const auto status = drives.inject(spec, start_ns); !status) {
+    if (const auto status = drives.inject(spec, bus_now()); !status) {
       std::cerr << "simdrive: --fault " << sd::format_fault_spec(spec) << ": " << status.detail()
                 << '\n';
       return 2;
@@ -246,10 +257,15 @@ int main(int argc, char** argv) {
   const auto max_ns = static_cast<std::int64_t>(max_seconds * 1e9);
   const char* end_reason = "signal";
   for (;;) {
-    std::int64_t now = monotonic_ns();
-    const std::int64_t deadline = drives.poll(now);
+    const std::int64_t polled_at = bus_now();
+    const std::int64_t deadline = drives.poll(polled_at);
     drain_events(drives.events(), events_out);
-    now = monotonic_ns();
+    // Real nanoseconds until the bus's next deadline.
+    const std::int64_t until_deadline_ns =
+        deadline >= std::numeric_limits<std::int64_t>::max() / 2
+            ? std::numeric_limits<std::int64_t>::max() / 2
+            : std::max<std::int64_t>(0, deadline - bus_now()) * slow_motion;
+    const std::int64_t now = monotonic_ns();
     if (drives.stats().frames_received != frames_seen) {
       frames_seen = drives.stats().frames_received;
       last_frame_ns = now;
@@ -262,7 +278,7 @@ int main(int argc, char** argv) {
       end_reason = "--exit-after-idle";
       break;
     }
-    std::int64_t wait_ns = std::max<std::int64_t>(0, deadline - now);
+    std::int64_t wait_ns = until_deadline_ns;
     if (max_ns > 0) wait_ns = std::min(wait_ns, start_ns + max_ns - now);
     if (idle_limit_ns > 0 && frames_seen > 0)
       wait_ns = std::min(wait_ns, last_frame_ns + idle_limit_ns - now);
@@ -300,7 +316,7 @@ int main(int argc, char** argv) {
             immediate.at_sync.reset();
             immediate.at_ns.reset();
           }
-          if (const auto status = drives.inject(immediate, monotonic_ns()); !status) {
+          if (const auto status = drives.inject(immediate, bus_now()); !status) {
             std::cerr << "simdrive: " << line << ": " << status.detail() << '\n';
           } else {
             std::cerr << "simdrive: applied " << sd::format_fault_spec(immediate) << '\n';
