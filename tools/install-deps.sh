@@ -21,6 +21,7 @@ packages=(
   rt-tests               # cyclictest, the timing reference
   gnuplot-nox            # PNG plots of the tradeoff and jitter tools
   clang-format clang-tidy
+  clang libclang-rt-14-dev   # the fuzz preset: clang++ and its libFuzzer/ASan/UBSan runtimes
 )
 
 missing=()
