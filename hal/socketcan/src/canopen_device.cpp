@@ -80,7 +80,12 @@ double CanopenDevice::estimate_bus_load(const CanopenDeviceParams& params) noexc
   const double drives = static_cast<double>(params.drives.size());
   double bits_per_sync = frame_bits(0);               // SYNC
   bits_per_sync += drives * frame_bits(4);            // RPDO1
-  bits_per_sync += drives * 2.0 * frame_bits(8);      // TPDO1, TPDO2
+  bits_per_sync += drives * frame_bits(8);            // TPDO1
+  // TPDO2 (velocity, digital inputs): every SYNC from the digital-inputs node, every
+  // kDiagnosticPdoEverySyncs-th from the others.
+  const double inputs_nodes = params.digital_inputs_node > 0 ? 1.0 : 0.0;
+  bits_per_sync += inputs_nodes * frame_bits(8) +
+                   (drives - inputs_nodes) * frame_bits(8) / kDiagnosticPdoEverySyncs;
   if (params.digital_outputs_node > 0) bits_per_sync += frame_bits(4);  // RPDO2
   const double sync_s = static_cast<double>(params.sync_period_ns) * 1e-9;
   double bits_per_s = bits_per_sync / sync_s;
@@ -151,6 +156,8 @@ void CanopenDevice::reset_rt_state() noexcept {
     drive.statusword = 0;
     drive.tpdo1_seen = false;
     drive.tpdo1_sync = 0;
+    drive.tpdo2_seen = false;
+    drive.tpdo2_sync = 0;
     drive.controlword = co::kCommandShutdown;
     drive.target_permille = 0;
     drive.saturated = false;
@@ -215,6 +222,8 @@ void CanopenDevice::handle_frame(const can_frame& frame, std::int64_t now_ns) no
       } else if (kind.pdo_number == 2 && frame.len == 8) {
         drive.velocity_actual = static_cast<std::int32_t>(le32(frame.data));
         drive.digital_inputs = le32(frame.data + 4);
+        drive.tpdo2_seen = true;
+        drive.tpdo2_sync = syncs_sent_;
       } else {
         ++diagnostics_.frames_rejected;
       }
@@ -330,7 +339,7 @@ hal::ReturnCode CanopenDevice::read_digital_inputs(std::uint32_t& levels) noexce
   }
   const Drive& drive = drives_[static_cast<std::size_t>(
       drive_of_node_[static_cast<std::size_t>(params_.digital_inputs_node)])];
-  if (!drive.tpdo1_seen || syncs_sent_ - drive.tpdo1_sync > kMaxPdoAgeSyncs) {
+  if (!drive.tpdo2_seen || syncs_sent_ - drive.tpdo2_sync > kMaxPdoAgeSyncs) {
     return hal::ReturnCode::error;  // the app then treats the e-stop as pressed
   }
   // CiA 402 0x60FD: bits 16..31 are the manufacturer's inputs, where the trainer's switches
@@ -491,8 +500,9 @@ core::Expected<void> CanopenDevice::activate() {
   ++syncs_sent_;
   ++diagnostics_.sync_sent;
   const auto all_in = [this] {
-    return std::all_of(drives_.begin(), drives_.end(),
-                       [](const Drive& drive) { return drive.tpdo1_seen; });
+    return std::all_of(drives_.begin(), drives_.end(), [this](const Drive& drive) {
+      return drive.tpdo1_seen && (drive.node != params_.digital_inputs_node || drive.tpdo2_seen);
+    });
   };
   detail::SetupBus wait(*transport_, transport_->name(), params_.sdo_timeout_ns);
   (void)wait.wait_for(params_.boot_timeout_ns, [&](const can_frame& frame) {

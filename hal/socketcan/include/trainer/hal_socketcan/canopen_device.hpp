@@ -36,7 +36,8 @@
 //   RPDO2 0x300+n, digital-outputs node only: 0x60FE:01/32 physical outputs
 //   TPDO1 0x180+n, every SYNC: 0x6041:00/16 statusword, 0x6064:00/32 position actual,
 //                               0x6077:00/16 torque actual
-//   TPDO2 0x280+n, every SYNC: 0x606C:00/32 velocity actual, 0x60FD:00/32 digital inputs
+//   TPDO2 0x280+n: 0x606C:00/32 velocity actual, 0x60FD:00/32 digital inputs; every SYNC from
+//         the digital-inputs node (the e-stop), every kDiagnosticPdoEverySyncs-th from others
 // Units: position actual in encoder counts (the device file's counts per motor revolution),
 // torques in per-mille of 0x6076 (motor side); joint-side SI through hal::JointScale.
 //
@@ -67,6 +68,9 @@ inline constexpr std::size_t kMaxDrives = 20;
 inline constexpr std::uint32_t kMaxPdoAgeSyncs = 3;
 // Frames drained from the bus per read_encoders() at most (several recvmmsg calls).
 inline constexpr std::size_t kMaxFramesPerCycle = 256;
+// TPDO2 (velocity actual, digital inputs) of drives that are not the digital-inputs node:
+// transmission type = every this many SYNCs (diagnostics only; saves bus bandwidth).
+inline constexpr std::uint8_t kDiagnosticPdoEverySyncs = 10;
 
 struct DriveParams {
   std::string channel_name;   // "left.pitch": used in every message about this drive
@@ -188,6 +192,8 @@ class CanopenDevice final : public hal::Device,
     std::uint32_t digital_inputs = 0;
     bool tpdo1_seen = false;
     std::uint64_t tpdo1_sync = 0;  // SYNCs sent when it arrived
+    bool tpdo2_seen = false;
+    std::uint64_t tpdo2_sync = 0;
     // What goes out in the next RPDO1.
     std::uint16_t controlword = 0;
     std::int16_t target_permille = 0;
