@@ -27,7 +27,8 @@ const char* to_string(CanFault fault) noexcept {
     case CanFault::heartbeat_lost: return "heartbeat_lost";
     case CanFault::node_rebooted: return "node_rebooted";
     case CanFault::node_not_operational: return "node_not_operational";
-    case CanFault::bus_error_passive: return "bus_error_passive";
+    case CanFault::pdo_timeout: return "pdo_timeout";
+    case CanFault::bad_pdo: return "bad_pdo";
   }
   return "unknown";
 }
@@ -193,8 +194,6 @@ void CanopenDevice::handle_frame(const can_frame& frame, std::int64_t now_ns) no
     ++diagnostics_.error_frames;
     if (const auto error = co::decode_bus_error(frame)) {
       if (error->bus_off) latch(CanFault::bus_off, 0);
-      if (error->severity == co::BusSeverity::error_passive)
-        diagnostics_.faults |= 0;  // counted in error_frames; the drives' heartbeats decide
     }
     return;
   }
@@ -225,7 +224,10 @@ void CanopenDevice::handle_frame(const can_frame& frame, std::int64_t now_ns) no
         drive.tpdo2_seen = true;
         drive.tpdo2_sync = syncs_sent_;
       } else {
+        // A PDO of another length than its mapping: a node that is not configured as we
+        // configured it, or a damaged frame (CiA 301 treats too short as an error).
         ++diagnostics_.frames_rejected;
+        latch(CanFault::bad_pdo, drive.node);
       }
       break;
     }
@@ -291,22 +293,19 @@ hal::ReturnCode CanopenDevice::read_encoders(std::span<hal::EncoderSample> out) 
     next_heartbeat_ns_ = clock_.now_ns();
   }
   drain_bus(clock_.now_ns());
-  bool all_valid = true;
   for (std::size_t i = 0; i < drives_.size(); ++i) {
     const Drive& drive = drives_[i];
     hal::EncoderSample& sample = out[i];
-    const bool fresh = drive.tpdo1_seen && syncs_sent_ - drive.tpdo1_sync <= kMaxPdoAgeSyncs;
+    const std::uint64_t age = drive.tpdo1_seen ? syncs_sent_ - drive.tpdo1_sync : syncs_sent_;
+    const bool fresh = drive.tpdo1_seen && age <= kMaxPdoAgeSyncs;
     sample.counts = drive.position_counts;
     sample.position =
         static_cast<float>(params_.drives[i].scale.position_from_counts(drive.position_counts));
     sample.valid = fresh;
-    if (!fresh) {
-      all_valid = false;
-      ++diagnostics_.stale_samples;
-    }
+    if (!fresh) latch(CanFault::pdo_timeout, drive.node);
+    if (age > 0) ++diagnostics_.stale_samples;
   }
-  if (latched()) return hal::ReturnCode::deactivate;
-  return all_valid ? hal::ReturnCode::ok : hal::ReturnCode::error;
+  return latched() ? hal::ReturnCode::deactivate : hal::ReturnCode::ok;
 }
 
 hal::ReturnCode CanopenDevice::read_actuator_status(std::span<hal::ActuatorStatus> out) noexcept {
@@ -545,8 +544,7 @@ void CanopenDevice::deactivate() noexcept {
 
 std::string CanopenDevice::fault_report() const {
   std::string text;
-  for (std::uint32_t bit = 1; bit != 0 && bit <= static_cast<std::uint32_t>(CanFault::bus_error_passive);
-       bit <<= 1U) {
+  for (std::uint32_t bit = 1; bit <= static_cast<std::uint32_t>(CanFault::bad_pdo); bit <<= 1U) {
     if ((diagnostics_.faults & bit) == 0U) continue;
     const auto fault = static_cast<CanFault>(bit);
     if (!text.empty()) text += "; ";
