@@ -27,7 +27,8 @@ const char* to_string(CanFault fault) noexcept {
     case CanFault::heartbeat_lost: return "heartbeat_lost";
     case CanFault::node_rebooted: return "node_rebooted";
     case CanFault::node_not_operational: return "node_not_operational";
-    case CanFault::bus_error_passive: return "bus_error_passive";
+    case CanFault::pdo_timeout: return "pdo_timeout";
+    case CanFault::bad_pdo: return "bad_pdo";
   }
   return "unknown";
 }
@@ -80,7 +81,12 @@ double CanopenDevice::estimate_bus_load(const CanopenDeviceParams& params) noexc
   const double drives = static_cast<double>(params.drives.size());
   double bits_per_sync = frame_bits(0);               // SYNC
   bits_per_sync += drives * frame_bits(4);            // RPDO1
-  bits_per_sync += drives * 2.0 * frame_bits(8);      // TPDO1, TPDO2
+  bits_per_sync += drives * frame_bits(8);            // TPDO1
+  // TPDO2 (velocity, digital inputs): every SYNC from the digital-inputs node, every
+  // kDiagnosticPdoEverySyncs-th from the others.
+  const double inputs_nodes = params.digital_inputs_node > 0 ? 1.0 : 0.0;
+  bits_per_sync += inputs_nodes * frame_bits(8) +
+                   (drives - inputs_nodes) * frame_bits(8) / kDiagnosticPdoEverySyncs;
   if (params.digital_outputs_node > 0) bits_per_sync += frame_bits(4);  // RPDO2
   const double sync_s = static_cast<double>(params.sync_period_ns) * 1e-9;
   double bits_per_s = bits_per_sync / sync_s;
@@ -151,6 +157,8 @@ void CanopenDevice::reset_rt_state() noexcept {
     drive.statusword = 0;
     drive.tpdo1_seen = false;
     drive.tpdo1_sync = 0;
+    drive.tpdo2_seen = false;
+    drive.tpdo2_sync = 0;
     drive.controlword = co::kCommandShutdown;
     drive.target_permille = 0;
     drive.saturated = false;
@@ -186,8 +194,6 @@ void CanopenDevice::handle_frame(const can_frame& frame, std::int64_t now_ns) no
     ++diagnostics_.error_frames;
     if (const auto error = co::decode_bus_error(frame)) {
       if (error->bus_off) latch(CanFault::bus_off, 0);
-      if (error->severity == co::BusSeverity::error_passive)
-        diagnostics_.faults |= 0;  // counted in error_frames; the drives' heartbeats decide
     }
     return;
   }
@@ -215,8 +221,13 @@ void CanopenDevice::handle_frame(const can_frame& frame, std::int64_t now_ns) no
       } else if (kind.pdo_number == 2 && frame.len == 8) {
         drive.velocity_actual = static_cast<std::int32_t>(le32(frame.data));
         drive.digital_inputs = le32(frame.data + 4);
+        drive.tpdo2_seen = true;
+        drive.tpdo2_sync = syncs_sent_;
       } else {
+        // A PDO of another length than its mapping: a node that is not configured as we
+        // configured it, or a damaged frame (CiA 301 treats too short as an error).
         ++diagnostics_.frames_rejected;
+        latch(CanFault::bad_pdo, drive.node);
       }
       break;
     }
@@ -282,22 +293,19 @@ hal::ReturnCode CanopenDevice::read_encoders(std::span<hal::EncoderSample> out) 
     next_heartbeat_ns_ = clock_.now_ns();
   }
   drain_bus(clock_.now_ns());
-  bool all_valid = true;
   for (std::size_t i = 0; i < drives_.size(); ++i) {
     const Drive& drive = drives_[i];
     hal::EncoderSample& sample = out[i];
-    const bool fresh = drive.tpdo1_seen && syncs_sent_ - drive.tpdo1_sync <= kMaxPdoAgeSyncs;
+    const std::uint64_t age = drive.tpdo1_seen ? syncs_sent_ - drive.tpdo1_sync : syncs_sent_;
+    const bool fresh = drive.tpdo1_seen && age <= kMaxPdoAgeSyncs;
     sample.counts = drive.position_counts;
     sample.position =
         static_cast<float>(params_.drives[i].scale.position_from_counts(drive.position_counts));
     sample.valid = fresh;
-    if (!fresh) {
-      all_valid = false;
-      ++diagnostics_.stale_samples;
-    }
+    if (!fresh) latch(CanFault::pdo_timeout, drive.node);
+    if (age > 0) ++diagnostics_.stale_samples;
   }
-  if (latched()) return hal::ReturnCode::deactivate;
-  return all_valid ? hal::ReturnCode::ok : hal::ReturnCode::error;
+  return latched() ? hal::ReturnCode::deactivate : hal::ReturnCode::ok;
 }
 
 hal::ReturnCode CanopenDevice::read_actuator_status(std::span<hal::ActuatorStatus> out) noexcept {
@@ -330,7 +338,7 @@ hal::ReturnCode CanopenDevice::read_digital_inputs(std::uint32_t& levels) noexce
   }
   const Drive& drive = drives_[static_cast<std::size_t>(
       drive_of_node_[static_cast<std::size_t>(params_.digital_inputs_node)])];
-  if (!drive.tpdo1_seen || syncs_sent_ - drive.tpdo1_sync > kMaxPdoAgeSyncs) {
+  if (!drive.tpdo2_seen || syncs_sent_ - drive.tpdo2_sync > kMaxPdoAgeSyncs) {
     return hal::ReturnCode::error;  // the app then treats the e-stop as pressed
   }
   // CiA 402 0x60FD: bits 16..31 are the manufacturer's inputs, where the trainer's switches
@@ -491,8 +499,9 @@ core::Expected<void> CanopenDevice::activate() {
   ++syncs_sent_;
   ++diagnostics_.sync_sent;
   const auto all_in = [this] {
-    return std::all_of(drives_.begin(), drives_.end(),
-                       [](const Drive& drive) { return drive.tpdo1_seen; });
+    return std::all_of(drives_.begin(), drives_.end(), [this](const Drive& drive) {
+      return drive.tpdo1_seen && (drive.node != params_.digital_inputs_node || drive.tpdo2_seen);
+    });
   };
   detail::SetupBus wait(*transport_, transport_->name(), params_.sdo_timeout_ns);
   (void)wait.wait_for(params_.boot_timeout_ns, [&](const can_frame& frame) {
@@ -535,8 +544,7 @@ void CanopenDevice::deactivate() noexcept {
 
 std::string CanopenDevice::fault_report() const {
   std::string text;
-  for (std::uint32_t bit = 1; bit != 0 && bit <= static_cast<std::uint32_t>(CanFault::bus_error_passive);
-       bit <<= 1U) {
+  for (std::uint32_t bit = 1; bit <= static_cast<std::uint32_t>(CanFault::bad_pdo); bit <<= 1U) {
     if ((diagnostics_.faults & bit) == 0U) continue;
     const auto fault = static_cast<CanFault>(bit);
     if (!text.empty()) text += "; ";

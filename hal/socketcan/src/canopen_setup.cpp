@@ -225,14 +225,15 @@ core::Expected<void> configure_pdos(SetupBus& bus, const CanopenDeviceParams& pa
   std::vector<co::PdoConfiguration> pdos;
   const auto add = [&](co::PdoDirection direction, std::uint16_t number,
                        std::optional<std::uint16_t> event_timer_ms,
-                       std::initializer_list<co::PdoField> fields) {
+                       std::initializer_list<co::PdoField> fields,
+                       std::uint8_t every_syncs = 1) {
     co::PdoConfiguration config;
     config.direction = direction;
     config.pdo_number = number;
     config.can_id = co::cob_id(
         direction == co::PdoDirection::receive ? co::FrameKind::rpdo : co::FrameKind::tpdo, node,
         static_cast<std::uint8_t>(number));
-    config.transmission_type = 1;  // synchronous, every SYNC
+    config.transmission_type = every_syncs;  // synchronous, every n-th SYNC
     config.event_timer_ms = event_timer_ms;
     for (const co::PdoField& field : fields) {
       (void)config.mapping.add(field.object.index, field.object.sub, field.object.bits,
@@ -257,8 +258,10 @@ core::Expected<void> configure_pdos(SetupBus& bus, const CanopenDeviceParams& pa
   add(PdoDirection::transmit, 1, std::nullopt,
       {field(co::kObjectStatusword, 0, 16, false), field(co::kObjectPositionActual, 0, 32, true),
        field(co::kObjectTorqueActual, 0, 16, true)});
+  const bool inputs_node = params.digital_inputs_node == node;
   add(PdoDirection::transmit, 2, std::nullopt,
-      {field(co::kObjectVelocityActual, 0, 32, true), field(kObjectDigitalInputs, 0, 32, false)});
+      {field(co::kObjectVelocityActual, 0, 32, true), field(kObjectDigitalInputs, 0, 32, false)},
+      inputs_node ? std::uint8_t{1} : kDiagnosticPdoEverySyncs);
   for (const co::PdoConfiguration& pdo : pdos) {
     core::FixedVector<co::SdoWrite, co::kMaxPdoConfigurationWrites> writes;
     if (auto planned = co::pdo_configuration_writes(pdo, writes); !planned) {

@@ -19,15 +19,15 @@
 //
 // RT cycle (noexcept, no heap, no blocking; SDO never runs here):
 //  read_encoders(): drains the bus (bounded), decodes TPDOs, heartbeats, EMCYs and error
-//    frames, runs the heartbeat consumer, then reports each joint's position actual. A sample
-//    is invalid when its TPDO1 is older than kMaxPdoAgeSyncs SYNCs.
+//    frames, runs the heartbeat consumer, then reports each joint's position actual. A TPDO1
+//    older than kMaxPdoAgeSyncs SYNCs latches pdo_timeout (the sample is invalid).
 //  write_actuators(): per drive the CiA 402 controlword toward Operation enabled (enable) or
 //    Switch on disabled (no torque), target torque in per-mille of the rated torque (clipped at the
 //    max torque, saturated flag), then, on SYNC cycles, RPDO1 of every drive, RPDO2 (digital
 //    outputs), the SYNC and, when due, the master's heartbeat in one sendmmsg.
 //  The latched faults: bus-off, an EMCY (other than "no error"), a drive in Fault or Fault
 //    reaction active, a drive's heartbeat lost, a node that rebooted, a node that left
-//    Operational. From that cycle every RT call returns ReturnCode::deactivate and every
+//    Operational, a TPDO missing for a whole period, a TPDO of the wrong length. From that cycle every RT call returns ReturnCode::deactivate and every
 //    RPDO carries zero torque with "quick stop"; communication recovering never clears it —
 //    only deactivate() + activate() (an operator's restart) does.
 //
@@ -36,7 +36,8 @@
 //   RPDO2 0x300+n, digital-outputs node only: 0x60FE:01/32 physical outputs
 //   TPDO1 0x180+n, every SYNC: 0x6041:00/16 statusword, 0x6064:00/32 position actual,
 //                               0x6077:00/16 torque actual
-//   TPDO2 0x280+n, every SYNC: 0x606C:00/32 velocity actual, 0x60FD:00/32 digital inputs
+//   TPDO2 0x280+n: 0x606C:00/32 velocity actual, 0x60FD:00/32 digital inputs; every SYNC from
+//         the digital-inputs node (the e-stop), every kDiagnosticPdoEverySyncs-th from others
 // Units: position actual in encoder counts (the device file's counts per motor revolution),
 // torques in per-mille of 0x6076 (motor side); joint-side SI through hal::JointScale.
 //
@@ -63,10 +64,17 @@
 namespace trainer::hal::socketcan {
 
 inline constexpr std::size_t kMaxDrives = 20;
-// A TPDO1 older than this many SYNCs makes the joint's encoder sample invalid this cycle.
-inline constexpr std::uint32_t kMaxPdoAgeSyncs = 3;
+// Age of a drive's newest TPDO1, counted in SYNCs sent since the one it answered. 0: it
+// answered the last SYNC; 1: the answer to the last SYNC is not in yet, the one before is
+// used (one SYNC old, tolerated: a drive answers within a period on a real bus, a slow host
+// may read first); 2 or more: a whole period passed without the answer, the drive is lost
+// for this purpose and the device latches pdo_timeout.
+inline constexpr std::uint32_t kMaxPdoAgeSyncs = 1;
 // Frames drained from the bus per read_encoders() at most (several recvmmsg calls).
 inline constexpr std::size_t kMaxFramesPerCycle = 256;
+// TPDO2 (velocity actual, digital inputs) of drives that are not the digital-inputs node:
+// transmission type = every this many SYNCs (diagnostics only; saves bus bandwidth).
+inline constexpr std::uint8_t kDiagnosticPdoEverySyncs = 10;
 
 struct DriveParams {
   std::string channel_name;   // "left.pitch": used in every message about this drive
@@ -108,7 +116,8 @@ enum class CanFault : std::uint32_t {
   heartbeat_lost = 1U << 3,
   node_rebooted = 1U << 4,
   node_not_operational = 1U << 5,
-  bus_error_passive = 1U << 6,  // counted, not latched
+  pdo_timeout = 1U << 6,        // a TPDO older than kMaxPdoAgeSyncs
+  bad_pdo = 1U << 7,            // a TPDO of the wrong length for its mapping
 };
 const char* to_string(CanFault fault) noexcept;
 
@@ -121,7 +130,7 @@ struct CanDiagnostics {
   std::uint64_t emcy_received = 0;
   std::uint64_t error_frames = 0;
   std::uint64_t frames_rejected = 0;     // malformed for their COB-ID, or unknown
-  std::uint64_t stale_samples = 0;       // joint-cycles with a too old TPDO1
+  std::uint64_t stale_samples = 0;       // joint-cycles that used a TPDO1 one SYNC old
   std::uint64_t cycles_frame_budget_hit = 0;  // cycles that left frames on the bus
   std::uint32_t faults = 0;              // CanFault bits latched
   CanFault first_fault = CanFault::none;
@@ -188,6 +197,8 @@ class CanopenDevice final : public hal::Device,
     std::uint32_t digital_inputs = 0;
     bool tpdo1_seen = false;
     std::uint64_t tpdo1_sync = 0;  // SYNCs sent when it arrived
+    bool tpdo2_seen = false;
+    std::uint64_t tpdo2_sync = 0;
     // What goes out in the next RPDO1.
     std::uint16_t controlword = 0;
     std::int16_t target_permille = 0;

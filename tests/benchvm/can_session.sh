@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Runs inside the bench VM (tools/benchvm/benchvm run -- ...), on the RT kernel's vcan0: the
+# trainer as one process, simdrive (the simulated CiA 402 drives) as another, candump logging
+# the bus, then candecode over the log. Everything lands in $BENCHVM_OUT.
+#   can_session.sh BIN_DIR SCENE DEVICE PERIOD_US CYCLES [simdrive --fault SPEC ...]
+# Exit status: the trainer's (0 completed, 3 completed with a fault latched), or 10 when
+# simdrive or candecode failed.
+set -uo pipefail
+bin=$1 scene=$2 device=$3 period_us=$4 cycles=$5
+shift 5
+out=${BENCHVM_OUT:?run me through benchvm run}
+
+candump -L vcan0 >"$out/session.log" 2>"$out/candump.err" &
+dump=$!
+"$bin/simdrive" --scene "$scene" --device "$device" --period-us "$period_us" \
+  --events "$out/simdrive_events.jsonl" "$@" >"$out/simdrive.txt" 2>&1 &
+sim=$!
+"$bin/trainer" --scene "$scene" --device "$device" --period-us "$period_us" --cycles "$cycles" \
+  --no-rt --report "$out/can_report.json" >"$out/trainer.txt" 2>&1
+status=$?
+sleep 0.2  # the drives' reaction to the master going away is part of the log
+kill -INT "$sim" 2>/dev/null
+wait "$sim"
+sim_status=$?
+kill -INT "$dump" 2>/dev/null
+wait "$dump" 2>/dev/null
+"$bin/candecode" --device "$device" "$out/session.log" >"$out/decoded.txt"
+decode_status=$?
+tail -n 1 "$out/decoded.txt"
+cat "$out/trainer.txt"
+echo "trainer exit $status, simdrive exit $sim_status, candecode exit $decode_status"
+if [ "$sim_status" -ne 0 ] || [ "$decode_status" -ne 0 ]; then exit 10; fi
+exit "$status"
