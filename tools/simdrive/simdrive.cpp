@@ -12,9 +12,10 @@
 // (at_sync / at_s count from the first NMT start); the same syntax on a stdin line applies a
 // fault at once. The loop waits in ppoll() on the CAN socket, stdin and a signalfd for
 // SIGINT/SIGTERM with the bus's next timer deadline as timeout. The protocol timers (heartbeats,
-// deadlines, at_s, delay) and the events log's t_ns run on CLOCK_MONOTONIC, or with
-// --slow-motion N on CLOCK_MONOTONIC / N: the trainer's --slow-motion N time line, so both
-// processes keep their heartbeat and deadline ratios under an emulator (core::SlowMotionClock).
+// deadlines, at_s, delay) run on CLOCK_MONOTONIC, or with --slow-motion N on CLOCK_MONOTONIC
+// / N: the trainer's --slow-motion N time line, so both processes keep their heartbeat and
+// deadline ratios under an emulator (core::SlowMotionClock). The events log's t_ns is always
+// CLOCK_MONOTONIC.
 // --max-seconds and --exit-after-idle are real seconds. On exit it prints per node the
 // final NMT and power state, frames and faults.
 //
@@ -69,10 +70,13 @@ std::optional<std::uint32_t> parse_u32(const std::string& text) {
   return static_cast<std::uint32_t>(value);
 }
 
-// Writes the events waiting in the log as JSON lines.
-void drain_events(sd::EventLog& log, std::ostream* out) {
+// Writes the events waiting in the log as JSON lines. Their t_ns is the bus's time line
+// (CLOCK_MONOTONIC / slow_motion): written back on CLOCK_MONOTONIC (to within slow_motion ns),
+// so other processes' monotonic times compare with it.
+void drain_events(sd::EventLog& log, std::ostream* out, std::int64_t slow_motion) {
   sd::DriveEvent event;
   while (log.pop(event)) {
+    event.t_ns *= slow_motion;
     if (out != nullptr) *out << sd::to_json(event) << '\n';
   }
   if (out != nullptr) out->flush();
@@ -259,7 +263,7 @@ int main(int argc, char** argv) {
   for (;;) {
     const std::int64_t polled_at = bus_now();
     const std::int64_t deadline = drives.poll(polled_at);
-    drain_events(drives.events(), events_out);
+    drain_events(drives.events(), events_out, slow_motion);
     // Real nanoseconds until the bus's next deadline.
     const std::int64_t until_deadline_ns =
         deadline >= std::numeric_limits<std::int64_t>::max() / 2
@@ -325,7 +329,7 @@ int main(int argc, char** argv) {
       }
     }
   }
-  drain_events(drives.events(), events_out);
+  drain_events(drives.events(), events_out, slow_motion);
   ::close(signal_fd);
   std::cout << "simdrive: stopped (" << end_reason << ") after "
             << static_cast<double>(monotonic_ns() - start_ns) * 1e-9 << " s\n"

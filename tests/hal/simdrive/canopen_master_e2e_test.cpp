@@ -1,11 +1,12 @@
 // The trainer's CiA 402 master (hal/socketcan CanopenDevice) against the simulated drives of
 // config/devices/canopen_vcan.toml over a socketpair: the bus polled in its own thread on the
-// real monotonic clock (configure() blocks on SDO answers), the master cycled every 1 ms from
-// the test thread as the trainer's loop would. Checked: identity and rated-torque mismatches
-// fail configure naming node and object; cycles enable every drive and the commanded efforts
-// reach the plant; what each injected fault does to the master's return codes and within how
-// many cycles; a killed master makes every drive remove its torque within the consumer time.
-// Timing: trainer_master_support.hpp (the file's deadlines widened to 200 ms).
+// real monotonic clock (configure() blocks on SDO answers), the master cycled every loop period
+// (4 ms, trainer_master_support.hpp) from the test thread as the trainer's loop would. Checked:
+// identity and rated-torque mismatches fail configure naming node and object; cycles enable every
+// drive and the commanded efforts reach the plant; what each injected fault does to the master's
+// return codes and within how many cycles; a killed master makes every drive remove its torque
+// within the consumer time. Timing: trainer_master_support.hpp (the file's deadlines widened to 200
+// ms).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -136,16 +137,17 @@ TEST(CanopenMasterAgainstSimDrive, CyclesEnableEveryDriveAndTheCommandedEffortsR
   }
   // Plant time = SYNCs x period, whatever the cycles' real timing was.
   EXPECT_NEAR(rig.bus().plant().script_time_s(),
-              static_cast<double>(rig.bus().syncs_since_start()) * 1e-3, 1e-9);
+              static_cast<double>(rig.bus().syncs_since_start()) *
+                  static_cast<double>(test_support::kLoopPeriodNs) * 1e-9,
+              1e-9);
   EXPECT_GE(rig.bus().syncs_since_start(), 400U);
 }
 
 struct FaultCase {
   const char* spec;
-  bool latches;       // the master returns deactivate (else: error, or nothing at all)
+  bool latches;       // the master returns deactivate (else it passes the fault through)
   int within_cycles;  // ... within this many cycles of the fault's injection
   CanFault first_fault;
-  bool errors;  // an `error` return (stale or invalid samples) within `within_cycles`
 };
 
 void PrintTo(const FaultCase& c, std::ostream* out) {
@@ -166,7 +168,7 @@ TEST_P(MasterSeesFault, WithinTheStatedCycles) {
   ASSERT_TRUE(rig.bus().post(*parse_fault_spec(c.spec)));
   int first_deactivate = -1;
   int first_error = -1;
-  const int horizon = c.within_cycles + 100;
+  const int horizon = c.within_cycles + 30;
   for (int cycle = 1; cycle <= horizon; ++cycle) {
     const CycleResult result = rig.cycle();
     if (first_deactivate < 0 && result.deactivate()) first_deactivate = cycle;
@@ -181,10 +183,6 @@ TEST_P(MasterSeesFault, WithinTheStatedCycles) {
   } else {
     EXPECT_EQ(first_deactivate, -1) << c.spec << ": " << rig.master().fault_report();
   }
-  if (c.errors) {
-    ASSERT_GT(first_error, 0) << c.spec << ": no error return";
-    EXPECT_LE(first_error, c.within_cycles) << c.spec;
-  }
   if (std::string(c.spec).rfind("encoder_jump", 0) == 0) {
     EXPECT_EQ(first_error, -1);
     rig.stop_drives();
@@ -196,21 +194,24 @@ TEST_P(MasterSeesFault, WithinTheStatedCycles) {
   }
 }
 
-// Cycle counts: a frame the master acts on arrives by the next cycle's drain; "stale" needs
-// kMaxPdoAgeSyncs (3) SYNCs without TPDO1; the master's heartbeat consumer needs its 200 ms.
+// Cycle counts: a frame the master acts on arrives by the next cycle's drain; a missing TPDO1
+// is tolerated one SYNC (kMaxPdoAgeSyncs) and latched the next; so a fault injected between two
+// cycles shows at cycle 2 or 3. A single lost SYNC is within the master's tolerance;
+// encoder_jump it passes through (the trainer's encoder-jump check is what reacts).
 INSTANTIATE_TEST_SUITE_P(
     EveryFault, MasterSeesFault,
-    ::testing::Values(
-        FaultCase{"emcy:node=3", true, 5, CanFault::emcy, false},
-        FaultCase{"bus_off", true, 5, CanFault::bus_off, false},
-        FaultCase{"reboot:node=4", true, 5, CanFault::node_rebooted, false},
-        FaultCase{"corrupt:node=2,mode=bits,count=0", true, 5, CanFault::drive_fault, false},
-        FaultCase{"silent:node=5", true, 260, CanFault::heartbeat_lost, true},
-        FaultCase{"drop:node=1", false, 8, CanFault::none, true},
-        FaultCase{"delay:node=1,ms=20", false, 8, CanFault::none, true},
-        FaultCase{"corrupt:node=1,count=0", false, 8, CanFault::none, true},
-        FaultCase{"lost_sync:node=1,count=0", false, 8, CanFault::none, true},
-        FaultCase{"encoder_jump:node=1,counts=4096", false, 8, CanFault::none, false}));
+    ::testing::Values(FaultCase{"emcy:node=3", true, 4, CanFault::emcy},
+                      FaultCase{"bus_off", true, 4, CanFault::bus_off},
+                      FaultCase{"reboot:node=4", true, 4, CanFault::node_rebooted},
+                      FaultCase{"corrupt:node=2,mode=bits,count=0", true, 4, CanFault::drive_fault},
+                      FaultCase{"corrupt:node=1", true, 4, CanFault::bad_pdo},
+                      FaultCase{"silent:node=5", true, 4, CanFault::pdo_timeout},
+                      FaultCase{"drop:node=1", true, 4, CanFault::pdo_timeout},
+                      FaultCase{"delay:node=1,ms=20", true, 4, CanFault::pdo_timeout},
+                      FaultCase{"lost_sync:node=1", false, 4,
+                                CanFault::none},  // one SYNC: tolerated
+                      FaultCase{"lost_sync:node=1,count=2", true, 4, CanFault::pdo_timeout},
+                      FaultCase{"encoder_jump:node=1,counts=4096", false, 4, CanFault::none}));
 
 TEST(CanopenMasterAgainstSimDrive,
      AKilledMasterLeavesEveryDriveWithoutTorqueWithinItsConsumerTime) {

@@ -45,7 +45,9 @@ class SimdriveProcess {
         "--fd",
         std::to_string(pair[1]),
         "--events",
-        events_path_};
+        events_path_,
+        "--period-us",
+        std::to_string(test_support::kLoopPeriodNs / 1000)};
     args.insert(args.end(), extra.begin(), extra.end());
     pid_ = ::fork();
     if (pid_ == 0) {
@@ -149,9 +151,10 @@ TEST(SimdriveProgram,
     if (event["event"] != "torque_removed") continue;
     ++removed;
     EXPECT_EQ(event["cause"], "master heartbeat lost") << event.dump();
-    // The master's last heartbeat left at most its period (10 ms) before the kill.
+    // The master's last heartbeat left at most its period (10 ms, sent in the first 4 ms
+    // cycle at or after it is due) before the kill.
     const std::int64_t after_kill = event["t_ns"].get<std::int64_t>() - killed_ns;
-    EXPECT_GE(after_kill, kWideDeadlineNs - 10'000'000) << event.dump();
+    EXPECT_GE(after_kill, kWideDeadlineNs - 15'000'000) << event.dump();
     EXPECT_LE(after_kill, kWideDeadlineNs + 30'000'000) << event.dump();
   }
   EXPECT_EQ(removed, 10) << "every drive of the file";
@@ -161,7 +164,7 @@ TEST(SimdriveProgram,
 }
 
 TEST(SimdriveProgram, FaultsFromStdinAndTheCommandLineReachTheMasterAndSigtermPrintsTheSummary) {
-  SimdriveProcess simdrive({"--fault", "drop:node=2,at_sync=30,count=5"});
+  SimdriveProcess simdrive({"--fault", "lost_sync:node=2,at_sync=30"});
   test_support::TrainerMaster trainer(test_support::vcan_device(), simdrive.take_transport());
   trainer.bring_up();
   ASSERT_FALSE(HasFatalFailure());
@@ -173,15 +176,15 @@ TEST(SimdriveProgram, FaultsFromStdinAndTheCommandLineReachTheMasterAndSigtermPr
     if (trainer.cycle().deactivate()) latched_at = cycle;
   }
   ASSERT_GT(latched_at, 0) << "the EMCY never reached the master";
-  EXPECT_LE(latched_at, 20);
+  EXPECT_LE(latched_at, 5);
   EXPECT_EQ(trainer.master().diagnostics().first_emcy_code, 0x4210);
   EXPECT_EQ(trainer.master().diagnostics().first_fault_node, 6);
   EXPECT_EQ(simdrive.finish(SIGTERM, 5.0), 0);
   EXPECT_NE(simdrive.output().find("stopped (signal)"), std::string::npos) << simdrive.output();
   EXPECT_NE(summary_line(simdrive.output(), "right.pitch").find("power fault"), std::string::npos)
       << simdrive.output();
-  // TPDO1 and TPDO2 of 5 SYNCs.
-  EXPECT_NE(summary_line(simdrive.output(), "left.yaw").find("dropped 10"), std::string::npos)
+  // One SYNC lost: within the master's tolerance, visible in the summary.
+  EXPECT_NE(summary_line(simdrive.output(), "left.yaw").find("(ignored 1)"), std::string::npos)
       << simdrive.output();
   int injected = 0;
   for (const nlohmann::json& event : simdrive.events()) {

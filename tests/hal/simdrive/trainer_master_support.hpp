@@ -2,7 +2,10 @@
 // run it: the device file config/devices/canopen_vcan.toml turned into the master's parameters
 // as rt/app does (canopen_params_from; the app is not linked into these tests), its deadlines
 // widened (see kWideDeadlineNs), and cycled at 1 ms on the monotonic clock like the trainer's
-// loop: read_encoders, read_actuator_status, write_actuators.
+// loop: read_encoders, read_actuator_status, write_actuators. The loop period (= the SYNC
+// period, the file says sync_period_us = 0) is 4 ms, not the scene's 1 ms: the master latches
+// pdo_timeout when a drive's TPDO1 is two SYNCs late, and the drives' thread or process must
+// not get there by being descheduled on a shared 2-core machine.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -23,7 +26,7 @@ namespace trainer::hal::simdrive::test_support {
 // heartbeat PERIODS are used as they are; the deadlines (drive heartbeat consumer, the master's
 // drive heartbeat timeout, RPDO deadline) become 200 ms and the SDO timeout 500 ms, so threads
 // and processes on a shared 2-core machine do not trip them by being descheduled.
-inline constexpr std::int64_t kLoopPeriodNs = 1'000'000;
+inline constexpr std::int64_t kLoopPeriodNs = 4'000'000;
 inline constexpr std::int64_t kWideDeadlineNs = 200'000'000;
 
 using socketcan::CanopenDevice;
