@@ -127,6 +127,8 @@ std::int64_t SimDriveBus::poll(std::int64_t now_ns) noexcept {
     const std::lock_guard lock(mailbox_mutex_);
     for (const FaultSpec& spec : mailbox_) (void)mailbox_taken_.push_back(spec);
     mailbox_.clear();
+    stats_.faults_refused += mailbox_refused_;
+    mailbox_refused_ = 0;
   }
   for (const FaultSpec& spec : mailbox_taken_) (void)inject(spec, now_ns);
   mailbox_taken_.clear();
@@ -285,7 +287,7 @@ core::Status SimDriveBus::inject(const FaultSpec& spec, std::int64_t now_ns) noe
 bool SimDriveBus::post(const FaultSpec& spec) noexcept {
   const std::lock_guard lock(mailbox_mutex_);
   if (mailbox_.push_back(spec)) return true;
-  ++stats_.faults_refused;
+  ++mailbox_refused_;  // added to stats_ by the polling thread
   return false;
 }
 

@@ -205,6 +205,7 @@ class SimDriveBus {
   core::FixedVector<Scheduled, kMaxScheduledFaults> schedule_;
   std::mutex mailbox_mutex_;
   core::FixedVector<FaultSpec, kMaxPostedFaults> mailbox_;
+  std::uint64_t mailbox_refused_ = 0;  // guarded by mailbox_mutex_
   core::FixedVector<FaultSpec, kMaxPostedFaults> mailbox_taken_;
   Lasting bus_off_;
   std::int64_t now_ns_ = 0;
