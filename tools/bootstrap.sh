@@ -5,7 +5,8 @@
 #                            on the simulated device (config/scenes/cbd.toml: the scripted
 #                            catheter insertion), report in out/
 #   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
-#                            suite, the ASan+UBSan unit tests and the TSan concurrency tests
+#                            suite, the ASan+UBSan unit tests, the TSan concurrency tests and
+#                            short libFuzzer runs of the CANopen library (fuzz preset, clang)
 #   tools/bootstrap.sh bench [benchmark args]
 #                            install, build, build the cbd and liver images, run the cycle
 #                            benchmark (bench_cycle: the whole cycle and each stage of the
@@ -88,6 +89,9 @@ case "$mode" in
     echo "== TSan build: concurrency tests"
     build tsan concurrency_tests
     ctest --preset tsan -j "$jobs"
+    echo "== fuzz build (clang, ASan+UBSan): libFuzzer targets, 200,000 runs each"
+    build fuzz fuzz_targets
+    ctest --preset fuzz
     echo "== all test suites passed"
     ;;
   *)

@@ -26,6 +26,7 @@ packages=(
   can-utils              # candump/cansend/cangw in the bench VM's CAN tests (run from the host root)
   iproute2               # ip: vcan links in the bench VM's CAN tests
   clang-format clang-tidy
+  clang libclang-rt-14-dev   # the fuzz preset: clang++ and its libFuzzer/ASan/UBSan runtimes
 )
 
 missing=()

@@ -188,7 +188,7 @@ can_frame encode_emcy(const EmcyMessage& message) noexcept {
 }
 
 std::optional<EmcyMessage> decode_emcy(const can_frame& frame) noexcept {
-  if ((frame.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) != 0 || frame.len != 8) {
+  if ((frame.can_id & ~CAN_SFF_MASK) != 0 || frame.len != 8) {  // flags or id bits above 10
     return std::nullopt;
   }
   const std::uint16_t id = frame_id(frame);

@@ -80,7 +80,9 @@ FrameClass classify(const can_frame& frame) noexcept {
     if (frame.len != CAN_MAX_DLEN) result.problem = FrameProblem::bad_length;
     return result;
   }
-  if (is_extended(frame)) {
+  // A 29-bit frame, or a standard frame with id bits above bit 10 (SocketCAN never delivers
+  // one; a hand-made frame might).
+  if (is_extended(frame) || (frame.can_id & CAN_EFF_MASK & ~CAN_SFF_MASK) != 0) {
     result.problem = FrameProblem::extended_id;
     return result;
   }

@@ -21,7 +21,7 @@ can_frame encode_heartbeat(std::uint8_t node_id, NmtState state) noexcept {
 }
 
 std::optional<HeartbeatMessage> decode_heartbeat(const can_frame& frame) noexcept {
-  if ((frame.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) != 0 || frame.len != 1) {
+  if ((frame.can_id & ~CAN_SFF_MASK) != 0 || frame.len != 1) {  // flags or id bits above 10
     return std::nullopt;
   }
   const std::uint16_t id = frame_id(frame);

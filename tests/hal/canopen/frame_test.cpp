@@ -76,6 +76,9 @@ TEST(Classify, RejectsWhatTheProtocolForbids) {
   const FrameClass extended = classify(frame_of(0x185 | CAN_EFF_FLAG, {1}));
   EXPECT_EQ(extended.problem, FrameProblem::extended_id);
   EXPECT_EQ(extended.kind, FrameKind::unknown);
+  EXPECT_EQ(classify(frame_of(0x885, {0, 0, 0, 0, 0, 0, 0, 0})).problem, FrameProblem::extended_id);
+  EXPECT_FALSE(decode_emcy(frame_of(0x885, {0, 0, 0, 0, 0, 0, 0, 0})).has_value());
+  EXPECT_FALSE(decode_heartbeat(frame_of(0x1705, {5})).has_value());
   can_frame too_long = frame_of(0x185, {});
   too_long.len = 9;
   EXPECT_EQ(classify(too_long).problem, FrameProblem::bad_length);

@@ -68,7 +68,7 @@ const char* to_string(FrameKind kind) noexcept;
 enum class FrameProblem : std::uint8_t {
   none,
   remote_request,  // RTR frame: RTR-PDOs and node guarding are not supported
-  extended_id,     // 29-bit identifier: not part of the pre-defined connection set
+  extended_id,     // 29-bit identifier (or id bits above bit 10 in a standard frame)
   bad_length,      // length the protocol forbids (NMT 2, SYNC 0/1, EMCY 8, SDO 8,
                    // heartbeat 1, TIME 6, error frame 8, anything > 8)
 };
