@@ -76,32 +76,17 @@ core::Expected<sd::SimDriveBusParams> bus_params_from(const config::DeviceConfig
 core::Expected<config::SceneConfig> load_scene_with_device(
     const std::filesystem::path& scene_file,
     const std::optional<std::filesystem::path>& device_file) {
-  auto scene = config::load_scene(scene_file);
+  // As the trainer's --device: the scene is checked against the replacing device file.
+  config::LoadOptions options;
+  options.device_file = device_file;
+  auto scene = config::load_scene(scene_file, options);
   if (!scene) return std::move(scene).error();
-  if (!device_file) {
-    if (scene->device.backend != "canopen") {
-      return core::make_error(
-          scene_file.string() + ": its device file " + scene->device.source_path.string() +
-          " has backend \"" + scene->device.backend +
-          "\": give a CANopen device file with --device (e.g. config/devices/canopen_vcan.toml)");
-    }
-    return scene;
+  if (scene->device.backend != "canopen") {
+    return core::make_error(scene->device.source_path.string() + ": device.backend = \"" +
+                            scene->device.backend +
+                            "\": simdrive simulates the drives of a \"canopen\" device file (give "
+                            "one with --device, e.g. config/devices/canopen_vcan.toml)");
   }
-  auto device = config::load_device(*device_file);
-  if (!device) return std::move(device).error();
-  for (const config::SceneInstrumentConfig& used : scene->instruments) {
-    const std::string& name = scene->device.instruments[used.device_instrument].name;
-    const auto& instruments = device->instruments;
-    const auto found =
-        std::find_if(instruments.begin(), instruments.end(),
-                     [&](const config::InstrumentDeviceConfig& i) { return i.name == name; });
-    if (found == instruments.end()) {
-      return core::make_error(device_file->string() + ": no instrument named '" + name +
-                              "', which " + scene_file.string() + " uses (instrument '" +
-                              used.name + "')");
-    }
-  }
-  scene->device = std::move(*device);
   return scene;
 }
 

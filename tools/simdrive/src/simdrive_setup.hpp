@@ -35,9 +35,9 @@ core::Expected<hal::simdrive::SimDriveBusParams> bus_params_from(
     const config::DeviceConfig& device, const std::string& trainee_script,
     std::int64_t loop_period_ns, const IdentityOverrides& overrides = {});
 
-// The scene (its trainee script and instruments) with another device file in place of the
-// one it names: the program's --scene/--device. Refuses a device file whose backend is not
-// "canopen" or that lacks an instrument the scene uses, naming both files.
+// The scene (its trainee script and loop period) with `device_file` in place of the device
+// file it names, checked against it as the trainer's --device does (config::LoadOptions::
+// device_file); without one, the scene's own. Refuses a device whose backend is not "canopen".
 core::Expected<config::SceneConfig> load_scene_with_device(
     const std::filesystem::path& scene_file,
     const std::optional<std::filesystem::path>& device_file);
