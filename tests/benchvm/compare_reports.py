@@ -7,7 +7,9 @@ torque is applied one SYNC later than on the simulated bench, so the figures are
 stated tolerances, not bit for bit:
   - the CAN run completed every cycle, armed throughout but for the start-up cycles, no fault
     latched, no heap allocation after arming, every output zeroed at exit, backend canopen;
-  - per instrument: peak force within 25 % (or 0.3 N), contact cycles within 10 % (or 50);
+  - per instrument: mean contact force within 20 % (or 0.05 N), contact cycles within 10 %
+    (or 50), catheter grasps equal; the peak force is shown, not compared: it is one cycle's
+    transient at a contact onset, and the one-SYNC delay changes such transients;
   - per catheter model with an insertion goal: target reached alike, peak depth within 15 %;
   - the bus: SYNCs sent = cycles, no frame dropped by the kernel, none malformed.
 Prints a table and exits 1 when a check fails.
@@ -46,8 +48,11 @@ def main():
           can["safety"]["outputs_zeroed_at_exit"], can["safety"]["outputs_zeroed_at_exit"])
     for s, c in zip(sim["instruments"], can["instruments"]):
         name = s["name"]
-        check(f"{name} peak force N", round(s["peak_force_n"], 3), round(c["peak_force_n"], 3),
-              close(s["peak_force_n"], c["peak_force_n"], 0.25, 0.3))
+        check(f"{name} mean contact force N", round(s["mean_contact_force_n"], 3),
+              round(c["mean_contact_force_n"], 3),
+              close(s["mean_contact_force_n"], c["mean_contact_force_n"], 0.20, 0.05))
+        rows.append((f"{name} peak force N (shown)", round(s["peak_force_n"], 3),
+                     round(c["peak_force_n"], 3), "-"))
         check(f"{name} contact cycles", s["contact_cycles"], c["contact_cycles"],
               close(s["contact_cycles"], c["contact_cycles"], 0.10, 50))
         check(f"{name} catheter grasps", s["catheter"]["grasps"], c["catheter"]["grasps"],

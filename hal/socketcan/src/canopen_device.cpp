@@ -542,6 +542,25 @@ void CanopenDevice::deactivate() noexcept {
   if (state_ == hal::LifecycleState::active) state_ = hal::LifecycleState::inactive;
 }
 
+core::Expected<void> CanopenDevice::refresh_status() {
+  if (state_ != hal::LifecycleState::inactive || !transport_) {
+    return core::make_error(params_.name + ": refresh_status() needs a configured, inactive device");
+  }
+  detail::SetupBus bus(*transport_, transport_->name(), params_.sdo_timeout_ns);
+  for (std::size_t i = 0; i < drives_.size(); ++i) {
+    Drive& drive = drives_[i];
+    const std::string who = detail::drive_who(params_, i);
+    auto status = bus.read(who, drive.node, co::kObjectStatusword, 0);
+    if (!status) return std::move(status).error();
+    auto torque = bus.read(who, drive.node, co::kObjectTorqueActual, 0);
+    if (!torque) return std::move(torque).error();
+    drive.statusword = static_cast<std::uint16_t>(*status);
+    drive.torque_actual_permille = static_cast<std::int16_t>(static_cast<std::uint16_t>(*torque));
+  }
+  diagnostics_.transport = transport_->counters();
+  return {};
+}
+
 std::string CanopenDevice::fault_report() const {
   std::string text;
   for (std::uint32_t bit = 1; bit <= static_cast<std::uint32_t>(CanFault::bad_pdo); bit <<= 1U) {

@@ -247,11 +247,12 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
 }
 
 // What the run leaves for the report, after the loop and the device stopped.
-void collect_result(const RunSetup& setup, RunResult& result) {
-  // Shutdown check through the HAL itself: every channel reports zero effort, disabled.
+void collect_result(const RunSetup& setup, bool status_known, RunResult& result) {
+  // Shutdown check through the HAL itself: every channel reports zero effort, disabled (drives
+  // on a bus were asked again after the deactivation, see run_trainer).
   std::vector<hal::ActuatorStatus> status(setup.device->actuators()->actuator_count());
   (void)setup.device->actuators()->read_actuator_status(status);
-  result.outputs_zeroed_at_exit = true;
+  result.outputs_zeroed_at_exit = status_known;
   for (const hal::ActuatorStatus& s : status) {
     if (s.applied_effort != 0.0F || s.enabled) result.outputs_zeroed_at_exit = false;
   }
@@ -303,9 +304,17 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   drain_log(*setup.log, options);
   setup.device->deactivate();
   if (!ran) return std::move(ran).error();
+  // A bus's drives report their state only in PDOs, which stop with the deactivation: ask them.
+  bool status_known = true;
+  if (auto* can = dynamic_cast<hal::socketcan::CanopenDevice*>(setup.device.get())) {
+    if (auto refreshed = can->refresh_status(); !refreshed) {
+      status_known = false;
+      result.rt.warnings.push_back("shutdown check failed: " + refreshed.error().message);
+    }
+  }
   result.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  collect_result(setup, result);
+  collect_result(setup, status_known, result);
   return result;
 }
 

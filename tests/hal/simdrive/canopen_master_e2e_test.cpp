@@ -28,7 +28,8 @@ using test_support::CycleResult;
 using test_support::kWideDeadlineNs;
 using test_support::monotonic_now;
 
-// The drives in a thread, the master in the test thread.
+// The drives in a thread while the master configures, then in lockstep with it in the test
+// thread (lockstep()).
 class MasterAndDrives {
  public:
   explicit MasterAndDrives(const tools::simdrive::IdentityOverrides& overrides = {})
@@ -60,14 +61,40 @@ class MasterAndDrives {
     if (thread_.joinable()) thread_.join();
   }
 
+  // From here on the drives run in the test thread, right after each cycle's write: the
+  // master's next read finds their answers to that SYNC whatever the machine's load, so fault
+  // latencies in cycles are exact (their own timers still run on the monotonic clock).
+  void lockstep() {
+    stop_drives();
+    lockstep_ = true;
+  }
+
   socketcan::CanopenDevice& master() { return master_->master(); }
   SimDriveBus& bus() { return *bus_; }
   std::size_t channels() const { return master_->channels(); }
   const std::vector<hal::EncoderSample>& samples() const { return master_->samples(); }
   const std::vector<hal::ActuatorStatus>& status() const { return master_->status(); }
-  void bring_up() { master_->bring_up(); }
+  // configure() and activate() block on the drives' answers, so the drives' thread serves them;
+  // then the rig goes to lockstep.
+  void bring_up() {
+    master_->bring_up();
+    lockstep();
+  }
+  // Lockstep only: the drives alone (the master is gone) for `duration_ns` of real time,
+  // polled as the program's loop polls them.
+  void run_drives_alone_for(std::int64_t duration_ns) {
+    const std::int64_t until = monotonic_now() + duration_ns;
+    for (std::int64_t now = monotonic_now(); now < until; now = monotonic_now()) {
+      const std::int64_t deadline = bus_->poll(now);
+      (void)bus_->transport().wait_readable(std::clamp<std::int64_t>(deadline - now, 0, 1'000'000));
+    }
+  }
   void command(double fraction) { master_->command(fraction); }
-  CycleResult cycle() { return master_->cycle(); }
+  CycleResult cycle() {
+    return master_->cycle([this] {
+      if (lockstep_) (void)bus_->poll(monotonic_now());
+    });
+  }
   bool all_enabled() const { return master_->all_enabled(); }
 
  private:
@@ -77,6 +104,7 @@ class MasterAndDrives {
   std::unique_ptr<test_support::TrainerMaster> master_;
   std::thread thread_;
   std::atomic<bool> stop_{false};
+  bool lockstep_ = false;
 };
 
 TEST(CanopenMasterAgainstSimDrive, AnIdentityMismatchFailsConfigureNamingTheNodeAndObject) {
@@ -225,8 +253,7 @@ TEST(CanopenMasterAgainstSimDrive,
   // The trainer dies: no more cycles, no deactivate(). Its last heartbeat left at most one
   // master heartbeat period (10 ms) before now.
   const std::int64_t killed_ns = monotonic_now();
-  std::this_thread::sleep_for(std::chrono::milliseconds(2 * kWideDeadlineNs / 1'000'000));
-  rig.stop_drives();
+  rig.run_drives_alone_for(2 * kWideDeadlineNs);
   const std::vector<DriveEvent> events = rig.bus().events().snapshot();
   for (std::size_t i = 0; i < rig.bus().node_count(); ++i) {
     const SimDriveNode& node = rig.bus().node(i);
@@ -234,14 +261,15 @@ TEST(CanopenMasterAgainstSimDrive,
     ASSERT_EQ(removed.size(), 1U) << "node " << int{node.node_id()};
     EXPECT_STREQ(removed[0].cause, "master heartbeat lost");
     // Measured from the master's last heartbeat as the drive heard it: more than the consumer
-    // time (CiA 301), and no later than the bus thread's wake-up after that deadline.
+    // time (CiA 301), and not much later (a behaviour bound, generous for a loaded machine: the
+    // distribution is measured by tools/benchvm/can-kill-trials, not here).
     const canopen::NodeHeartbeatStatus* master = node.heartbeat_consumer().status(127);
     ASSERT_NE(master, nullptr);
     const std::int64_t after_heartbeat = removed[0].t_ns - master->last_heard_ns;
     RecordProperty("node_" + std::to_string(node.node_id()) + "_removed_after_last_heartbeat_us",
                    static_cast<int>(after_heartbeat / 1000));
     EXPECT_GT(after_heartbeat, kWideDeadlineNs) << "node " << int{node.node_id()};
-    EXPECT_LE(after_heartbeat, kWideDeadlineNs + 20'000'000) << "node " << int{node.node_id()};
+    EXPECT_LE(after_heartbeat, 2 * kWideDeadlineNs) << "node " << int{node.node_id()};
     EXPECT_LE(master->last_heard_ns, killed_ns) << "the last heartbeat came before the kill";
     EXPECT_GE(master->last_heard_ns, killed_ns - 15'000'000) << "a 10 ms producer";
     EXPECT_EQ(node.power_state(), canopen::PowerState::switch_on_disabled)

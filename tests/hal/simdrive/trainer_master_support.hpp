@@ -133,17 +133,23 @@ class TrainerMaster {
       commands_[i] = {static_cast<float>((i % 2 == 0 ? fraction : -fraction) * max_effort), true};
     }
   }
-  // One loop cycle as the trainer runs it (read, status, write), then wait for the next period.
-  CycleResult cycle() {
+  // One loop cycle as the trainer runs it (read, status, write), then `after_write` (the drives'
+  // turn when they run in lockstep), then wait for the next period.
+  template <class AfterWrite>
+  CycleResult cycle(AfterWrite&& after_write) {
     CycleResult result;
     result.encoders = master_->read_encoders(samples_);
     result.status = master_->read_actuator_status(status_);
     result.actuators = master_->write_actuators(commands_);
+    after_write();
     next_cycle_ns_ += kLoopPeriodNs;
     clock_.sleep_until_ns(next_cycle_ns_);
     if (clock_.now_ns() > next_cycle_ns_ + 20 * kLoopPeriodNs)
       next_cycle_ns_ = clock_.now_ns();  // no bursts
     return result;
+  }
+  CycleResult cycle() {
+    return cycle([] {});
   }
   bool all_enabled() const {
     return std::all_of(status_.begin(), status_.end(),

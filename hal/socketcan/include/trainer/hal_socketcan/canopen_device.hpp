@@ -177,6 +177,12 @@ class CanopenDevice final : public hal::Device,
   std::size_t digital_output_count() const noexcept override { return 16; }
   hal::ReturnCode write_digital_outputs(std::uint32_t levels) noexcept override;
 
+  // Setup path, after deactivate(): asks every drive over SDO for its statusword (0x6041) and
+  // torque actual (0x6077), so that read_actuator_status() reports what the drives say now
+  // rather than their last PDO (no PDOs flow once the drives are pre-operational). Errors name
+  // the drive that did not answer.
+  core::Expected<void> refresh_status();
+
   const CanDiagnostics& diagnostics() const noexcept { return diagnostics_; }
   // One line per latched fault with node, joint and (for EMCY) the decoded error code.
   std::string fault_report() const;
