@@ -71,16 +71,31 @@ def main():
         [os.path.join(bin_dir, "simdrive"), "--scene", scene, "--device", device,
          "--no-stdin", "--events", events_path] + (["--slow-motion", str(slow_motion)] if slow_motion > 1 else []),
         stdout=sim_log, stderr=subprocess.STDOUT)
+    # simdrive is up when every node has announced its boot-up.
+    booted = set()
+
+    def all_booted(events):
+        booted.update(e["node"] for e in events if e["event"] == "boot")
+        return booted >= set(nodes)
+
+    _, offset, ok = wait_for(events_path, 0, all_booted, 30.0)
+    if not ok:
+        print(f"simdrive did not come up: boot-ups from {sorted(booted)} of {nodes}")
+        simdrive.kill()
+        return 1
     rng = random.Random(15)
     results = []
-    offset = 0
     failures = 0
+    lost_precondition = 0
+    trial = 0
     try:
-        for trial in range(trials):
+        while trial < trials:
+            trainer_log_path = os.path.join(out_dir, "kill_trials_trainer.txt")
+            trainer_log = open(trainer_log_path, "w")
             trainer = subprocess.Popen(
                 [os.path.join(bin_dir, "trainer"), "--scene", scene, "--device", device, "--no-rt"]
                 + (["--slow-motion", str(slow_motion)] if slow_motion > 1 else []),
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                stdout=trainer_log, stderr=subprocess.STDOUT)
             enabled = set()
 
             def all_enabled(events):
@@ -95,19 +110,40 @@ def main():
             if not ok:
                 trainer.kill()
                 trainer.wait()
+                trainer_log.close()
                 print(f"trial {trial}: the drives never all reached torque on "
-                      f"({sorted(enabled)} of {nodes}); trainer exit {trainer.returncode}")
+                      f"({sorted(enabled)} of {nodes}); trainer exit {trainer.returncode}; "
+                      f"its output:")
+                print(open(trainer_log_path).read()[-3000:])
                 failures += 1
                 results.append({"trial": trial, "error": "not all drives enabled"})
+                trial += 1
                 continue
             time.sleep(rng.uniform(0.05, 0.3))
             t_kill = time.monotonic_ns()
             trainer.send_signal(signal.SIGKILL)
             trainer.wait()
+            # Every drive must still have had torque on at the kill: a trainer that latched a
+            # fault during the wait (a slow emulator missing a deadline) had already switched
+            # them off, and the trial measures nothing. It is counted and run again.
+            before_kill, offset = read_events(events_path, offset)
+            still_on = set(enabled)
+            for e in before_kill:
+                if e["t_ns"] < t_kill and e["event"] == "torque_removed":
+                    still_on.discard(e["node"])
+            if still_on != set(nodes):
+                lost_precondition += 1
+                print(f"trial {trial}: drives {sorted(set(nodes) - still_on)} were already off "
+                      f"before the kill (the trainer had stopped them); trial run again")
+                if lost_precondition > trials:
+                    failures += 1
+                    break
+                time.sleep(0.5)
+                continue
             removed = {}
 
             def all_removed(events):
-                for e in events:
+                for e in before_kill + events:
                     if e["event"] == "torque_removed" and e["t_ns"] >= t_kill:
                         removed.setdefault(e["node"], e)
                 return set(removed) >= set(nodes)
@@ -126,6 +162,7 @@ def main():
             # Let the drives' state settle (they are in quick stop / switch on disabled) and
             # the next trainer's NMT reset start from a quiet bus.
             time.sleep(0.1)
+            trial += 1
     finally:
         simdrive.send_signal(signal.SIGINT)
         try:
@@ -136,6 +173,7 @@ def main():
     summary = {
         "trials": trials,
         "failed": failures,
+        "rerun_precondition_lost": lost_precondition,
         "slow_motion": slow_motion,
         "drive_heartbeat_consumer_ms": consumer_ms,
         "rpdo_timeout_ms": rpdo_ms,
@@ -158,7 +196,8 @@ def main():
           f"{len(nodes)} drives without torque, ms: " +
           (f"min {d['min']:.1f} p50 {d['p50']:.1f} p90 {d['p90']:.1f} p99 {d['p99']:.1f} "
            f"max {d['max']:.1f}" if d else "none") +
-          f" (consumer time {consumer_ms} ms, RPDO deadline {rpdo_ms} ms); causes: {summary['causes']}")
+          f" (consumer time {consumer_ms} ms, RPDO deadline {rpdo_ms} ms); causes: {summary['causes']}; "
+          f"{lost_precondition} trials run again (drives already off before the kill)")
     return 0 if failures == 0 else 1
 
 

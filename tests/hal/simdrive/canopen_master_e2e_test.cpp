@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "simdrive_setup.hpp"
+#include "trainer/core/alloc_counter.hpp"
 #include "simdrive_test_support.hpp"
 #include "trainer_master_support.hpp"
 
@@ -169,6 +170,32 @@ TEST(CanopenMasterAgainstSimDrive, CyclesEnableEveryDriveAndTheCommandedEffortsR
                   static_cast<double>(test_support::kLoopPeriodNs) * 1e-9,
               1e-9);
   EXPECT_GE(rig.bus().syncs_since_start(), 400U);
+}
+
+TEST(CanopenMasterAgainstSimDrive, TheMastersCyclesMakeNoHeapAllocations) {
+  // The RT half of the CAN backend, as the trainer's armed thread runs it: 500 cycles of
+  // read_encoders, read_actuator_status, read_digital_inputs, write_actuators and
+  // write_digital_outputs with the drives answering in lockstep (their poll() allocates nothing
+  // after the first NMT start either).
+  MasterAndDrives rig;
+  rig.bring_up();
+  ASSERT_FALSE(HasFatalFailure());
+  rig.command(0.2);
+  for (int cycle = 0; cycle < 20; ++cycle) ASSERT_FALSE(rig.cycle().deactivate());
+  std::uint32_t inputs = 0;
+  core::alloc::begin_counting_this_thread();
+  const std::uint64_t before = core::alloc::counted_allocations();
+  bool faulted = false;
+  for (int cycle = 0; cycle < 500; ++cycle) {
+    faulted = faulted || rig.cycle().deactivate();
+    faulted = faulted || rig.master().read_digital_inputs(inputs) != hal::ReturnCode::ok;
+    faulted = faulted || rig.master().write_digital_outputs(0x1) != hal::ReturnCode::ok;
+  }
+  const std::uint64_t allocations = core::alloc::counted_allocations() - before;
+  core::alloc::end_counting_this_thread();
+  EXPECT_FALSE(faulted) << rig.master().fault_report();
+  EXPECT_EQ(allocations, 0U);
+  EXPECT_GE(rig.master().diagnostics().sync_sent, 500U);
 }
 
 struct FaultCase {
