@@ -387,6 +387,14 @@ std::string report_summary(const RunResult& r) {
     for (const auto& [name, count] : r.fault_counts) out << " " << name << "×" << count;
   }
   out << "\n  outputs zeroed at exit: " << (r.outputs_zeroed_at_exit ? "yes" : "NO") << "\n";
+  if (r.can) {
+    const hal::socketcan::CanDiagnostics& c = *r.can;
+    out << "  can: " << c.sync_sent << " SYNCs, " << c.tpdo_received << " TPDOs, "
+        << c.stale_samples << " one SYNC old, " << c.error_frames << " error frames, "
+        << c.transport.rx_kernel_drops << " kernel drops, " << c.transport.tx_dropped
+        << " frames not sent; faults: " << (r.can_faults.empty() ? "none" : r.can_faults)
+        << "\n";
+  }
   return out.str();
 }
 
