@@ -7,7 +7,7 @@
 #   can_cbd_test.sh SOURCE_DIR BIN_DIR [SLOW_MOTION] [OUT_DIR]
 # Exit 77 (skip) when the bench VM cannot run here.
 set -euo pipefail
-src=$1 bin=$2 slow=${3:-12}
+src=$1 bin=$2 slow=${3:-16}
 work=${4:-$(mktemp -d)}
 [ $# -ge 4 ] || trap 'rm -rf "$work"' EXIT
 mkdir -p "$work"
@@ -21,7 +21,8 @@ device=config/devices/canopen_vcan.toml
 cycles=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['cycles'])" "$work/sim_report.json")
 # Two virtual CPUs: the trainer and simdrive each get one, as on a bench with two machines
 # (on one emulated CPU the drives' work lands inside the trainer's write stage). Slow motion
-# 12: the emulated cbd cycle takes ~4 ms of the 12 ms a period then lasts.
+# 16: the emulated cbd cycle takes ~4 ms of the 16 ms a period then lasts, and a hiccup of the
+# emulator must last two periods (32 ms) to make a TPDO two SYNCs late.
 status=0
 tools/benchvm/benchvm run --smp 2 --timeout 900 --out "$work" -- \
   tests/benchvm/can_session.sh "$bin" "$scene" "$device" 1000 "$cycles" "$slow" || status=$?

@@ -10,7 +10,7 @@ mkdir -p "$work"
 cd "$src"
 status=0
 tools/benchvm/benchvm run --smp 2 --timeout 600 --out "$work" -- \
-  tests/benchvm/can_faults.sh "$bin" 8 || status=$?
+  tests/benchvm/can_faults.sh "$bin" 16 || status=$?
 [ "$status" -ne 77 ] || exit 77
 [ "$status" -eq 0 ] || { echo "FAIL: the fault sessions exited with $status"; exit 1; }
 python3 tests/benchvm/check_faults.py "$work"

@@ -67,8 +67,10 @@ def main():
     events_path = os.path.join(out_dir, "kill_trials_events.jsonl")
     open(events_path, "w").close()
     sim_log = open(os.path.join(out_dir, "kill_trials_simdrive.txt"), "w")
+    # The drives are separate hardware on a real bench: a real-time priority here, so that the
+    # emulated trainer never starves them.
     simdrive = subprocess.Popen(
-        [os.path.join(bin_dir, "simdrive"), "--scene", scene, "--device", device,
+        ["chrt", "-f", "50", os.path.join(bin_dir, "simdrive"), "--scene", scene, "--device", device,
          "--no-stdin", "--events", events_path] + (["--slow-motion", str(slow_motion)] if slow_motion > 1 else []),
         stdout=sim_log, stderr=subprocess.STDOUT)
     # simdrive is up when every node has announced its boot-up.

@@ -17,7 +17,9 @@ out=${BENCHVM_OUT:?run me through benchvm run}
 # log is copied out at the end.
 candump -L vcan0 >/tmp/session.log 2>"$out/candump.err" &
 dump=$!
-"$bin/simdrive" --scene "$scene" --device "$device" --period-us "$period_us" --slow-motion "$slow" \
+# The drives are separate hardware on a real bench: here they get a real-time priority so that
+# the emulated trainer (or candump) never starves them.
+chrt -f 50 "$bin/simdrive" --scene "$scene" --device "$device" --period-us "$period_us" --slow-motion "$slow" \
   --no-stdin --events "$out/simdrive_events.jsonl" "$@" >"$out/simdrive.txt" 2>&1 &
 sim=$!
 "$bin/trainer" --scene "$scene" --device "$device" --period-us "$period_us" --cycles "$cycles" \

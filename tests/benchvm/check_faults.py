@@ -15,7 +15,7 @@ import os
 import re
 import sys
 
-AT_SYNC = 300
+AT_SYNC = 200
 ACTED_CYCLE = AT_SYNC - 1  # the first cycle that can see the drives' reaction
 
 
@@ -30,7 +30,7 @@ def drives_off(simdrive_text):
 def main():
     out = sys.argv[1]
     failures = 0
-    print(f"{'fault (at SYNC 300)':<44} {'first fault':<16} {'cycle':>5} {'after':>5} "
+    print(f"{'fault (at SYNC 200)':<44} {'first fault':<16} {'cycle':>5} {'after':>5} "
           f"{'armed':>5} {'off':>4} {'asked':>5}  CAN faults")
     for spec_file in sorted(glob.glob(os.path.join(out, "fault_*.spec")),
                             key=lambda p: int(p.split("_")[-1].split(".")[0])):

@@ -12,6 +12,8 @@
 #include "trainer/hal_canopen/frame.hpp"
 #include "trainer/hal_canopen/heartbeat.hpp"
 #include "trainer/hal_canopen/nmt.hpp"
+#include "trainer/hal_canopen/objects.hpp"
+#include "trainer/hal_canopen/pdo.hpp"
 #include "trainer/hal_canopen/sync.hpp"
 
 namespace trainer::hal::socketcan {
@@ -35,27 +37,31 @@ const char* to_string(CanFault fault) noexcept {
 
 namespace {
 
-std::uint16_t le16(const std::uint8_t* bytes) noexcept {
-  return static_cast<std::uint16_t>(bytes[0] | (bytes[1] << 8));
-}
-std::uint32_t le32(const std::uint8_t* bytes) noexcept {
-  return static_cast<std::uint32_t>(bytes[0]) | (static_cast<std::uint32_t>(bytes[1]) << 8) |
-         (static_cast<std::uint32_t>(bytes[2]) << 16) |
-         (static_cast<std::uint32_t>(bytes[3]) << 24);
-}
-void put16(std::uint8_t* bytes, std::uint16_t value) noexcept {
-  bytes[0] = static_cast<std::uint8_t>(value & 0xFFU);
-  bytes[1] = static_cast<std::uint8_t>(value >> 8);
-}
-void put32(std::uint8_t* bytes, std::uint32_t value) noexcept {
-  for (unsigned i = 0; i < 4; ++i) bytes[i] = static_cast<std::uint8_t>((value >> (8 * i)) & 0xFFU);
+// CiA 402 digital inputs / physical outputs (not in the pure library's object list).
+constexpr std::uint16_t kObjectDigitalInputs = 0x60FD;   // u32, bits 16..31 manufacturer
+constexpr std::uint16_t kObjectDigitalOutputs = 0x60FE;  // sub 1: u32 physical outputs
+
+// An RPDO of `mapping` to `node` carrying `values` (in mapping order). The values fit their
+// fields by construction (u16 controlword, i16 torque clamped, u32 outputs).
+can_frame rpdo_frame(const co::PdoMapping& mapping, std::uint8_t pdo_number, std::uint8_t node,
+                     std::span<const std::int64_t> values) noexcept {
+  can_frame frame{};
+  frame.can_id = co::cob_id(co::FrameKind::rpdo, node, pdo_number);
+  (void)mapping.pack(values, frame);
+  return frame;
 }
 
-can_frame data_frame(std::uint16_t id, std::uint8_t length) noexcept {
-  can_frame frame{};
-  frame.can_id = id;
-  frame.len = length;
-  return frame;
+co::PdoMapping make_mapping(std::initializer_list<co::PdoField> fields) noexcept {
+  co::PdoMapping mapping;
+  for (const co::PdoField& field : fields) {
+    (void)mapping.add(field.object.index, field.object.sub, field.object.bits, field.is_signed);
+  }
+  return mapping;
+}
+
+constexpr co::PdoField pdo_field(std::uint16_t index, std::uint8_t sub, std::uint8_t bits,
+                                 bool is_signed) noexcept {
+  return co::PdoField{{index, sub, bits}, is_signed, 0};
 }
 
 // Bits on the wire of a classic base-format data frame with `bytes` data bytes, with the
@@ -75,6 +81,22 @@ CanopenDevice::CanopenDevice(core::Clock& clock, CanopenDeviceParams params,
 }
 
 CanopenDevice::~CanopenDevice() { deactivate(); }
+
+const PdoLayout& pdo_layout() noexcept {
+  static const PdoLayout layout = [] {
+    PdoLayout l;
+    l.rpdo1 = make_mapping({pdo_field(co::kObjectControlword, 0, 16, false),
+                            pdo_field(co::kObjectTargetTorque, 0, 16, true)});
+    l.rpdo2 = make_mapping({pdo_field(kObjectDigitalOutputs, 1, 32, false)});
+    l.tpdo1 = make_mapping({pdo_field(co::kObjectStatusword, 0, 16, false),
+                            pdo_field(co::kObjectPositionActual, 0, 32, true),
+                            pdo_field(co::kObjectTorqueActual, 0, 16, true)});
+    l.tpdo2 = make_mapping({pdo_field(co::kObjectVelocityActual, 0, 32, true),
+                            pdo_field(kObjectDigitalInputs, 0, 32, false)});
+    return l;
+  }();
+  return layout;
+}
 
 double CanopenDevice::estimate_bus_load(const CanopenDeviceParams& params) noexcept {
   if (params.bitrate == 0 || params.sync_period_ns <= 0) return 0.0;
@@ -208,19 +230,24 @@ void CanopenDevice::handle_frame(const can_frame& frame, std::int64_t now_ns) no
       if (index < 0) break;
       Drive& drive = drives_[static_cast<std::size_t>(index)];
       ++diagnostics_.tpdo_received;
-      if (kind.pdo_number == 1 && frame.len == 8) {
-        drive.statusword = le16(frame.data);
-        drive.position_counts = static_cast<std::int32_t>(le32(frame.data + 2));
-        drive.torque_actual_permille = static_cast<std::int16_t>(le16(frame.data + 6));
+      const PdoLayout& layout = pdo_layout();
+      std::array<std::int64_t, 3> values{};
+      if (kind.pdo_number == 1 && layout.tpdo1.check_length(frame) == co::PdoLength::ok &&
+          layout.tpdo1.unpack(frame, values)) {
+        drive.statusword = static_cast<std::uint16_t>(values[0]);
+        drive.position_counts = static_cast<std::int32_t>(values[1]);
+        drive.torque_actual_permille = static_cast<std::int16_t>(values[2]);
         drive.tpdo1_seen = true;
         drive.tpdo1_sync = syncs_sent_;
         const co::PowerState power = co::decode_statusword(drive.statusword);
         if (power == co::PowerState::fault || power == co::PowerState::fault_reaction_active) {
           latch(CanFault::drive_fault, drive.node);
         }
-      } else if (kind.pdo_number == 2 && frame.len == 8) {
-        drive.velocity_actual = static_cast<std::int32_t>(le32(frame.data));
-        drive.digital_inputs = le32(frame.data + 4);
+      } else if (kind.pdo_number == 2 &&
+                 layout.tpdo2.check_length(frame) == co::PdoLength::ok &&
+                 layout.tpdo2.unpack(frame, std::span(values.data(), 2))) {
+        drive.velocity_actual = static_cast<std::int32_t>(values[0]);
+        drive.digital_inputs = static_cast<std::uint32_t>(values[1]);
         drive.tpdo2_seen = true;
         drive.tpdo2_sync = syncs_sent_;
       } else {
@@ -388,7 +415,8 @@ hal::ReturnCode CanopenDevice::write_actuators(
     drive.target_permille = static_cast<std::int16_t>(std::lround(permille));
   }
   ++cycles_;
-  if (cycles_ % sync_every_cycles_ == 0 || cycles_ == 1) send_cycle_frames(clock_.now_ns());
+  // SYNC (with the commands) on cycles 1, 1 + n, 1 + 2n ... for a SYNC every n loop periods.
+  if ((cycles_ - 1) % sync_every_cycles_ == 0) send_cycle_frames(clock_.now_ns());
   if (latched()) return hal::ReturnCode::deactivate;
   return rejected ? hal::ReturnCode::error : hal::ReturnCode::ok;
 }
@@ -396,17 +424,15 @@ hal::ReturnCode CanopenDevice::write_actuators(
 void CanopenDevice::send_cycle_frames(std::int64_t now_ns) noexcept {
   std::array<can_frame, kMaxDrives + 4> frames{};
   std::size_t count = 0;
+  const PdoLayout& layout = pdo_layout();
   for (const Drive& drive : drives_) {
-    can_frame& rpdo = frames[count++];
-    rpdo = data_frame(static_cast<std::uint16_t>(co::kCobRpdo1Base + drive.node), 4);
-    put16(rpdo.data, drive.controlword);
-    put16(rpdo.data + 2, static_cast<std::uint16_t>(drive.target_permille));
+    const std::array<std::int64_t, 2> values{drive.controlword, drive.target_permille};
+    frames[count++] = rpdo_frame(layout.rpdo1, 1, drive.node, values);
   }
   if (params_.digital_outputs_node > 0) {
-    can_frame& rpdo = frames[count++];
-    rpdo = data_frame(
-        static_cast<std::uint16_t>(co::kCobRpdo2Base + params_.digital_outputs_node), 4);
-    put32(rpdo.data, digital_outputs_ << 16);
+    const std::array<std::int64_t, 1> outputs{std::int64_t{digital_outputs_} << 16};
+    frames[count++] = rpdo_frame(layout.rpdo2, 2,
+                                 static_cast<std::uint8_t>(params_.digital_outputs_node), outputs);
   }
   frames[count++] = co::encode_sync();
   if (now_ns >= next_heartbeat_ns_) {
@@ -432,6 +458,7 @@ core::Expected<void> CanopenDevice::configure() {
   }
   if (auto checked = check_params(); !checked) return checked;
   diagnostics_.bus_load = estimate_bus_load(params_);
+  sync_every_cycles_ = static_cast<std::uint32_t>(params_.sync_period_ns / params_.loop_period_ns);
   if (!transport_) {
     // One receive filter per drive: every function code of that node id (TPDOs, EMCY, SDO
     // answers, heartbeat), nothing of other nodes; error frames come through the error mask.
@@ -530,10 +557,8 @@ void CanopenDevice::deactivate() noexcept {
   std::array<can_frame, kMaxDrives + 3> frames{};
   std::size_t count = 0;
   for (const Drive& drive : drives_) {
-    can_frame& rpdo = frames[count++];
-    rpdo = data_frame(static_cast<std::uint16_t>(co::kCobRpdo1Base + drive.node), 4);
-    put16(rpdo.data, co::kCommandDisableVoltage);
-    put16(rpdo.data + 2, 0);
+    const std::array<std::int64_t, 2> values{co::kCommandDisableVoltage, 0};
+    frames[count++] = rpdo_frame(pdo_layout().rpdo1, 1, drive.node, values);
   }
   frames[count++] = co::encode_sync();
   frames[count++] = co::encode_nmt(co::NmtCommand::enter_pre_operational, 0);

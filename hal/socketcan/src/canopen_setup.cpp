@@ -3,7 +3,6 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <initializer_list>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -45,9 +44,6 @@ std::string object_name(std::uint16_t index, std::uint8_t sub) {
 // Rated torque read back may differ from the file by the drive's mN·m rounding.
 constexpr double kRatedTorqueTolerance = 0.005;
 
-// CiA 402 digital inputs / physical outputs (not in the pure library's object list).
-constexpr std::uint16_t kObjectDigitalInputs = 0x60FD;   // u32, bits 16..31 manufacturer
-constexpr std::uint16_t kObjectDigitalOutputs = 0x60FE;  // sub 1 u32 physical outputs
 
 }  // namespace
 
@@ -224,9 +220,8 @@ core::Expected<void> configure_pdos(SetupBus& bus, const CanopenDeviceParams& pa
   const auto rpdo_deadline_ms = static_cast<std::uint16_t>(params.rpdo_timeout_ns / 1'000'000);
   std::vector<co::PdoConfiguration> pdos;
   const auto add = [&](co::PdoDirection direction, std::uint16_t number,
-                       std::optional<std::uint16_t> event_timer_ms,
-                       std::initializer_list<co::PdoField> fields,
-                       std::uint8_t every_syncs = 1) {
+                       const co::PdoMapping& mapping, std::optional<std::uint16_t> event_timer_ms,
+                       std::uint8_t every_syncs) {
     co::PdoConfiguration config;
     config.direction = direction;
     config.pdo_number = number;
@@ -235,32 +230,17 @@ core::Expected<void> configure_pdos(SetupBus& bus, const CanopenDeviceParams& pa
         static_cast<std::uint8_t>(number));
     config.transmission_type = every_syncs;  // synchronous, every n-th SYNC
     config.event_timer_ms = event_timer_ms;
-    for (const co::PdoField& field : fields) {
-      (void)config.mapping.add(field.object.index, field.object.sub, field.object.bits,
-                               field.is_signed);
-    }
+    config.mapping = mapping;
     pdos.push_back(config);
   };
-  const auto field = [](std::uint16_t object, std::uint8_t sub, std::uint8_t bits,
-                        bool is_signed) {
-    co::PdoField f;
-    f.object = {object, sub, bits};
-    f.is_signed = is_signed;
-    return f;
-  };
   using co::PdoDirection;
-  add(PdoDirection::receive, 1, rpdo_deadline_ms,
-      {field(co::kObjectControlword, 0, 16, false), field(co::kObjectTargetTorque, 0, 16, true)});
+  const PdoLayout& layout = pdo_layout();
+  add(PdoDirection::receive, 1, layout.rpdo1, rpdo_deadline_ms, 1);
   const bool outputs_node = params.digital_outputs_node == node;
-  if (outputs_node) {
-    add(PdoDirection::receive, 2, std::nullopt, {field(kObjectDigitalOutputs, 1, 32, false)});
-  }
-  add(PdoDirection::transmit, 1, std::nullopt,
-      {field(co::kObjectStatusword, 0, 16, false), field(co::kObjectPositionActual, 0, 32, true),
-       field(co::kObjectTorqueActual, 0, 16, true)});
+  if (outputs_node) add(PdoDirection::receive, 2, layout.rpdo2, std::nullopt, 1);
+  add(PdoDirection::transmit, 1, layout.tpdo1, std::nullopt, 1);
   const bool inputs_node = params.digital_inputs_node == node;
-  add(PdoDirection::transmit, 2, std::nullopt,
-      {field(co::kObjectVelocityActual, 0, 32, true), field(kObjectDigitalInputs, 0, 32, false)},
+  add(PdoDirection::transmit, 2, layout.tpdo2, std::nullopt,
       inputs_node ? std::uint8_t{1} : kDiagnosticPdoEverySyncs);
   for (const co::PdoConfiguration& pdo : pdos) {
     core::FixedVector<co::SdoWrite, co::kMaxPdoConfigurationWrites> writes;

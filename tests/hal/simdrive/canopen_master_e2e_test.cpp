@@ -33,8 +33,11 @@ using test_support::monotonic_now;
 // thread (lockstep()).
 class MasterAndDrives {
  public:
-  explicit MasterAndDrives(const tools::simdrive::IdentityOverrides& overrides = {})
+  // sync_period_ns: the device file's canopen.sync_period_us (0 = every loop period).
+  explicit MasterAndDrives(const tools::simdrive::IdentityOverrides& overrides = {},
+                           std::int64_t sync_period_ns = 0)
       : device_(test_support::vcan_device()) {
+    device_.canopen.sync_period_ns = sync_period_ns;
     auto pair = socketcan::make_transport_pair("master", "simdrive");
     EXPECT_TRUE(pair);
     auto params = tools::simdrive::bus_params_from(device_, "builtin:hold",
@@ -196,6 +199,26 @@ TEST(CanopenMasterAgainstSimDrive, TheMastersCyclesMakeNoHeapAllocations) {
   EXPECT_FALSE(faulted) << rig.master().fault_report();
   EXPECT_EQ(allocations, 0U);
   EXPECT_GE(rig.master().diagnostics().sync_sent, 500U);
+}
+
+TEST(CanopenMasterAgainstSimDrive, ASyncEveryTwoLoopPeriodsSendsHalfTheSyncsAndStillDrives) {
+  // canopen.sync_period_us = 2 loop periods: SYNC and commands every second cycle, positions
+  // refreshed every second cycle, the plant advanced 2 periods per SYNC.
+  MasterAndDrives rig({}, 2 * test_support::kLoopPeriodNs);
+  rig.bring_up();
+  ASSERT_FALSE(HasFatalFailure());
+  rig.command(0.25);
+  const std::uint64_t syncs_before = rig.master().diagnostics().sync_sent;
+  for (int cycle = 0; cycle < 100; ++cycle) {
+    EXPECT_FALSE(rig.cycle().deactivate()) << "cycle " << cycle << ": "
+                                           << rig.master().fault_report();
+  }
+  EXPECT_EQ(rig.master().diagnostics().sync_sent - syncs_before, 50U);
+  EXPECT_TRUE(rig.all_enabled());
+  EXPECT_NEAR(rig.bus().plant().script_time_s(),
+              static_cast<double>(rig.bus().syncs_since_start()) * 2.0 *
+                  static_cast<double>(test_support::kLoopPeriodNs) * 1e-9,
+              1e-9);
 }
 
 struct FaultCase {

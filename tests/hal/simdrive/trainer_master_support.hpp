@@ -1,11 +1,10 @@
 // The trainer's CiA 402 master (hal/socketcan CanopenDevice) as the simulated drives' tests
 // run it: the device file config/devices/canopen_vcan.toml turned into the master's parameters
-// as rt/app does (canopen_params_from; the app is not linked into these tests), its deadlines
-// widened (see kWideDeadlineNs), and cycled at 1 ms on the monotonic clock like the trainer's
-// loop: read_encoders, read_actuator_status, write_actuators. The loop period (= the SYNC
-// period, the file says sync_period_us = 0) is 4 ms, not the scene's 1 ms: the master latches
-// pdo_timeout when a drive's TPDO1 is two SYNCs late, and the drives' thread or process must
-// not get there by being descheduled on a shared 2-core machine.
+// by rt/app's canopen_params_from, its deadlines widened (see kWideDeadlineNs), and cycled on
+// the monotonic clock like the trainer's loop (read_encoders, read_actuator_status,
+// write_actuators) every 4 ms (= the SYNC period: the file says sync_period_us = 0), not the
+// scene's 1 ms: where the drives run in another thread or process (configure, the program
+// test), being descheduled on a shared 2-core machine must not make a TPDO1 two SYNCs late.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -16,7 +15,9 @@
 #include <utility>
 #include <vector>
 
+#include "trainer/app/device_wiring.hpp"
 #include "trainer/config/device.hpp"
+#include "trainer/config/scene.hpp"
 #include "trainer/core/clock.hpp"
 #include "trainer/hal_socketcan/canopen_device.hpp"
 
@@ -49,44 +50,13 @@ inline config::DeviceConfig vcan_device() {
   return config;
 }
 
-// What rt/app's canopen_params_from() makes of the device file (the app is not linked here).
+// The master's parameters as the trainer makes them (rt/app canopen_params_from), for a scene
+// whose loop runs at kLoopPeriodNs on this device.
 inline CanopenDeviceParams master_params(const config::DeviceConfig& device) {
-  const config::CanopenConfig& bus = device.canopen;
-  CanopenDeviceParams params;
-  params.name = device.name;
-  params.interface = bus.interface;
-  params.bitrate = bus.bitrate;
-  params.loop_period_ns = kLoopPeriodNs;
-  params.sync_period_ns = bus.sync_period_ns > 0 ? bus.sync_period_ns : kLoopPeriodNs;
-  params.master_node_id = bus.master_node_id;
-  params.master_heartbeat_ns = bus.master_heartbeat_ns;
-  params.drive_heartbeat_consumer_ns = bus.drive_heartbeat_consumer_ns;
-  params.drive_heartbeat_ns = bus.drive_heartbeat_ns;
-  params.drive_heartbeat_timeout_ns = bus.drive_heartbeat_timeout_ns;
-  params.rpdo_timeout_ns = bus.rpdo_timeout_ns;
-  params.abort_connection_option = static_cast<std::uint8_t>(bus.abort_connection);
-  params.sdo_timeout_ns = bus.sdo_timeout_ns;
-  params.boot_timeout_ns = bus.boot_timeout_ns;
-  params.digital_inputs_node = bus.digital_inputs_node;
-  params.digital_outputs_node = bus.digital_outputs_node;
-  for (std::size_t i = 0; i < device.instruments.size(); ++i) {
-    const config::InstrumentDeviceConfig& instrument = device.instruments[i];
-    for (std::size_t j = 0; j < instrument.joints.size(); ++j) {
-      const config::JointConfig& joint = instrument.joints[j];
-      const std::string joint_name(config::to_string(static_cast<config::JointId>(j)));
-      socketcan::DriveParams drive;
-      drive.channel_name = instrument.name + "." + joint_name;
-      drive.config_key = "instrument[" + std::to_string(i) + "]." + joint_name;
-      drive.node_id = joint.canopen.node_id;
-      drive.vendor_id = joint.canopen.vendor_id;
-      drive.product_code = joint.canopen.product_code;
-      drive.revision = joint.canopen.revision;
-      drive.motor_rated_torque_nm = joint.canopen.motor_rated_torque_nm;
-      drive.scale = config::joint_scale(joint);
-      params.drives.push_back(std::move(drive));
-    }
-  }
-  return params;
+  config::SceneConfig scene;
+  scene.device = device;
+  scene.loop.period_ns = kLoopPeriodNs;
+  return app::canopen_params_from(scene);
 }
 
 struct CycleResult {

@@ -59,6 +59,7 @@
 #include "trainer/hal/device.hpp"
 #include "trainer/hal/joint_scale.hpp"
 #include "trainer/hal_canopen/heartbeat.hpp"
+#include "trainer/hal_canopen/pdo.hpp"
 #include "trainer/hal_socketcan/can_transport.hpp"
 
 namespace trainer::hal::socketcan {
@@ -75,6 +76,16 @@ inline constexpr std::size_t kMaxFramesPerCycle = 256;
 // TPDO2 (velocity actual, digital inputs) of drives that are not the digital-inputs node:
 // transmission type = every this many SYNCs (diagnostics only; saves bus bandwidth).
 inline constexpr std::uint8_t kDiagnosticPdoEverySyncs = 10;
+
+// The trainer's PDO layout (the table above) as the library's mappings: configure() writes
+// them to the drives and the RT cycle packs and unpacks frames with the same objects.
+struct PdoLayout {
+  canopen::PdoMapping rpdo1;  // controlword, target torque
+  canopen::PdoMapping rpdo2;  // physical outputs (digital-outputs node)
+  canopen::PdoMapping tpdo1;  // statusword, position actual, torque actual
+  canopen::PdoMapping tpdo2;  // velocity actual, digital inputs
+};
+const PdoLayout& pdo_layout() noexcept;
 
 struct DriveParams {
   std::string channel_name;   // "left.pitch": used in every message about this drive
