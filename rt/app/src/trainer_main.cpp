@@ -57,6 +57,11 @@ int main(int argc, char** argv) {
                  "Run real time N times slower (an emulator such as the bench VM, debugging); "
                  "1 = the appliance")
       ->check(CLI::Range(1, 1000));
+  std::int64_t overrun_limit = 0;
+  auto* overrun_opt = cli.add_option(
+      "--overrun-streak-limit", overrun_limit,
+      "Consecutive overruns that latch a fault, replacing loop.overrun_streak_limit (an "
+      "emulator's stalls in the bench VM)");
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
   cli.footer(
@@ -73,6 +78,7 @@ int main(int argc, char** argv) {
   if (*period_opt) options.loop_overrides.period_us = period_us;
   if (*priority_opt) options.loop_overrides.priority = priority;
   if (*cpu_opt) options.loop_overrides.cpu = cpu;
+  if (*overrun_opt) options.loop_overrides.overrun_streak_limit = overrun_limit;
   options.arm = !no_arm;
   options.apply_rt_settings = !no_rt;
 

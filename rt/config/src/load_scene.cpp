@@ -387,6 +387,16 @@ core::Expected<void> apply_loop_overrides(LoopConfig& loop, const LoopOverrides&
       return ok;
     }
   }
+  if (overrides.overrun_streak_limit) {
+    if (auto ok = check("overrun_streak_limit", *overrides.overrun_streak_limit,
+                        kOverrunStreakRange, "consecutive overruns");
+        !ok) {
+      return ok;
+    }
+  }
+  if (overrides.overrun_streak_limit) {
+    loop.overrun_streak_limit = static_cast<std::uint32_t>(*overrides.overrun_streak_limit);
+  }
   if (overrides.period_us) loop.period_ns = *overrides.period_us * kNanosecondsPerMicrosecond;
   if (overrides.priority) loop.priority = *overrides.priority;
   if (overrides.cpu) loop.cpu = *overrides.cpu;

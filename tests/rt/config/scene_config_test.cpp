@@ -476,5 +476,17 @@ TEST(LoopOverrides, OutOfRangeNamesTheKeyAndLeavesTheLoopUntouched) {
   EXPECT_EQ(loop.cpu, 1);
 }
 
+TEST(LoopOverrides, TheOverrunStreakLimitIsRangedLikeTheFilesKey) {
+  LoopConfig loop;
+  loop.overrun_streak_limit = 10;
+  const auto bad = apply_loop_overrides(loop, LoopOverrides{.overrun_streak_limit = 0});
+  ASSERT_FALSE(bad.has_value());
+  expect_contains(bad.error().message, "override of loop.overrun_streak_limit = 0");
+  expect_contains(bad.error().message, "expected 1 to 100000");
+  EXPECT_EQ(loop.overrun_streak_limit, 10U);
+  ASSERT_TRUE(apply_loop_overrides(loop, LoopOverrides{.overrun_streak_limit = 1000}).has_value());
+  EXPECT_EQ(loop.overrun_streak_limit, 1000U);
+}
+
 }  // namespace
 }  // namespace trainer::config

@@ -131,6 +131,7 @@ struct LoopOverrides {
   std::optional<std::int64_t> period_us{};  // loop.period_us
   std::optional<int> priority{};            // loop.priority
   std::optional<int> cpu{};                 // loop.cpu
+  std::optional<std::int64_t> overrun_streak_limit{};  // loop.overrun_streak_limit
 };
 
 // Checks every set override against the range of its [loop] key (docs/config.md) and, only
