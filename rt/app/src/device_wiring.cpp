@@ -3,13 +3,17 @@
 namespace trainer::app {
 
 hal::sim::SimDeviceParams sim_params_from(const config::SceneConfig& scene) {
-  const config::DeviceConfig& device = scene.device;
+  return sim_params_from(scene.device, scene.trainee.script);
+}
+
+hal::sim::SimDeviceParams sim_params_from(const config::DeviceConfig& device,
+                                          const std::string& trainee_script) {
   hal::sim::SimDeviceParams params;
   params.name = device.name;
   params.plant_substep_ns = device.plant_substep_ns;
   params.digital.estop_input_bit = device.digital.estop_input_bit;
   params.digital.enable_input_bit = device.digital.enable_input_bit;
-  params.script = scene.trainee.script;
+  params.script = trainee_script;
   for (const config::InstrumentDeviceConfig& instrument : device.instruments) {
     hal::sim::SimInstrumentParams sim;
     sim.name = instrument.name;

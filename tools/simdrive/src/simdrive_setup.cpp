@@ -1,5 +1,7 @@
 #include "simdrive_setup.hpp"
 
+#include "trainer/app/device_wiring.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -31,26 +33,11 @@ core::Expected<sd::SimDriveBusParams> bus_params_from(const config::DeviceConfig
   }
   params.digital_inputs_node = device.canopen.digital_inputs_node;
   params.digital_outputs_node = device.canopen.digital_outputs_node;
-  // The plant: what the sim backend builds from the same mechanism (sim_params_from).
-  hal::sim::SimDeviceParams& plant = params.plant;
-  plant.name = device.name;
-  plant.plant_substep_ns = device.plant_substep_ns;
-  plant.digital.estop_input_bit = device.digital.estop_input_bit;
-  plant.digital.enable_input_bit = device.digital.enable_input_bit;
-  plant.script = trainee_script;
+  // The plant: what the sim backend builds from the same mechanism.
+  params.plant = app::sim_params_from(device, trainee_script);
   for (const config::InstrumentDeviceConfig& instrument : device.instruments) {
-    hal::sim::SimInstrumentParams sim;
-    sim.name = instrument.name;
     for (std::size_t j = 0; j < instrument.joints.size(); ++j) {
       const config::JointConfig& joint = instrument.joints[j];
-      sim.scales[j] = config::joint_scale(joint);
-      hal::sim::JointPlantParams& joint_plant = sim.plant[j];
-      joint_plant.inertia = joint.inertia;
-      joint_plant.hand_stiffness = joint.hand_stiffness;
-      joint_plant.hand_damping = joint.hand_damping;
-      joint_plant.min_position = joint.min_position;
-      joint_plant.max_position = joint.max_position;
-
       const config::CanopenJointConfig& drive = joint.canopen;
       sd::SimDriveNodeParams node;
       node.node_id = drive.node_id;
@@ -68,7 +55,6 @@ core::Expected<sd::SimDriveBusParams> bus_params_from(const config::DeviceConfig
           std::max<std::int64_t>(device.canopen.sdo_timeout_ns * 10, 1'000'000'000);
       params.nodes.push_back(std::move(node));
     }
-    plant.instruments.push_back(std::move(sim));
   }
   return params;
 }

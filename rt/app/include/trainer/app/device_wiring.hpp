@@ -4,6 +4,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
@@ -14,6 +15,10 @@
 namespace trainer::app {
 
 hal::sim::SimDeviceParams sim_params_from(const config::SceneConfig& scene);
+// The simulated plant of a device file's mechanism with `trainee_script` as the hand: also
+// what simdrive puts behind its drives.
+hal::sim::SimDeviceParams sim_params_from(const config::DeviceConfig& device,
+                                          const std::string& trainee_script);
 
 // The CiA 402 master's parameters: the device file's [canopen] table and drives (channel
 // order = instrument * 5 + joint, as on the simulated bench), the scene's loop period.
