@@ -145,6 +145,10 @@ core::Expected<void> CanopenDevice::check_params() const {
                             std::to_string(p.sync_period_ns / 1000) +
                             " us each): the drives would time out between commands");
   }
+  if (p.max_pdo_age_syncs < 1 || p.max_pdo_age_syncs > 1000) {
+    return core::make_error(p.name + ": max_pdo_age_syncs = " +
+                            std::to_string(p.max_pdo_age_syncs) + ", expected 1..1000");
+  }
   std::array<bool, 128> used{};
   for (const DriveParams& drive : p.drives) {
     if (!co::is_valid_node_id(drive.node_id) || used[drive.node_id] ||
@@ -324,7 +328,7 @@ hal::ReturnCode CanopenDevice::read_encoders(std::span<hal::EncoderSample> out) 
     const Drive& drive = drives_[i];
     hal::EncoderSample& sample = out[i];
     const std::uint64_t age = drive.tpdo1_seen ? syncs_sent_ - drive.tpdo1_sync : syncs_sent_;
-    const bool fresh = drive.tpdo1_seen && age <= kMaxPdoAgeSyncs;
+    const bool fresh = drive.tpdo1_seen && age <= params_.max_pdo_age_syncs;
     sample.counts = drive.position_counts;
     sample.position =
         static_cast<float>(params_.drives[i].scale.position_from_counts(drive.position_counts));
@@ -365,7 +369,7 @@ hal::ReturnCode CanopenDevice::read_digital_inputs(std::uint32_t& levels) noexce
   }
   const Drive& drive = drives_[static_cast<std::size_t>(
       drive_of_node_[static_cast<std::size_t>(params_.digital_inputs_node)])];
-  if (!drive.tpdo2_seen || syncs_sent_ - drive.tpdo2_sync > kMaxPdoAgeSyncs) {
+  if (!drive.tpdo2_seen || syncs_sent_ - drive.tpdo2_sync > params_.max_pdo_age_syncs) {
     return hal::ReturnCode::error;  // the app then treats the e-stop as pressed
   }
   // CiA 402 0x60FD: bits 16..31 are the manufacturer's inputs, where the trainer's switches

@@ -59,6 +59,16 @@ inline CanopenDeviceParams master_params(const config::DeviceConfig& device) {
   return app::canopen_params_from(scene);
 }
 
+// The same for drives in another PROCESS (the simdrive program): the oldest TPDO used is also
+// widened to kWideDeadlineNs (50 SYNCs), because a process descheduled for two 4 ms periods on
+// a loaded 2-core machine (a parallel build, ctest -j2) would otherwise latch pdo_timeout. The
+// in-process lockstep tests keep the trainer's kMaxPdoAgeSyncs and test it.
+inline CanopenDeviceParams process_master_params(const config::DeviceConfig& device) {
+  CanopenDeviceParams params = master_params(device);
+  params.max_pdo_age_syncs = static_cast<std::uint32_t>(kWideDeadlineNs / kLoopPeriodNs);
+  return params;
+}
+
 struct CycleResult {
   hal::ReturnCode encoders = hal::ReturnCode::ok;
   hal::ReturnCode status = hal::ReturnCode::ok;
@@ -77,8 +87,9 @@ struct CycleResult {
 class TrainerMaster {
  public:
   TrainerMaster(const config::DeviceConfig& device, socketcan::CanTransport transport)
-      : master_(
-            std::make_unique<CanopenDevice>(clock_, master_params(device), std::move(transport))) {}
+      : TrainerMaster(master_params(device), std::move(transport)) {}
+  TrainerMaster(CanopenDeviceParams params, socketcan::CanTransport transport)
+      : master_(std::make_unique<CanopenDevice>(clock_, std::move(params), std::move(transport))) {}
 
   CanopenDevice& master() { return *master_; }
   std::size_t channels() const { return master_->encoder_count(); }

@@ -20,7 +20,8 @@
 // RT cycle (noexcept, no heap, no blocking; SDO never runs here):
 //  read_encoders(): drains the bus (bounded), decodes TPDOs, heartbeats, EMCYs and error
 //    frames, runs the heartbeat consumer, then reports each joint's position actual. A TPDO1
-//    older than kMaxPdoAgeSyncs SYNCs latches pdo_timeout (the sample is invalid).
+//    older than max_pdo_age_syncs SYNCs (kMaxPdoAgeSyncs) latches pdo_timeout (the sample is
+//    invalid).
 //  write_actuators(): per drive the CiA 402 controlword toward Operation enabled (enable) or
 //    Switch on disabled (no torque), target torque in per-mille of the rated torque (clipped at the
 //    max torque, saturated flag), then, on SYNC cycles, RPDO1 of every drive, RPDO2 (digital
@@ -115,6 +116,10 @@ struct CanopenDeviceParams {
   std::int64_t boot_timeout_ns = 0;
   int digital_inputs_node = -1;   // -1 = no digital inputs
   int digital_outputs_node = -1;  // -1 = no digital outputs
+  // Oldest TPDO (in SYNCs since the one it answered) still used; older latches pdo_timeout.
+  // The trainer keeps kMaxPdoAgeSyncs; only tests whose drives run in another process on a
+  // shared machine widen it, as they widen the other deadlines. [1, 1000]
+  std::uint32_t max_pdo_age_syncs = kMaxPdoAgeSyncs;
   std::vector<DriveParams> drives;  // channel order
 };
 
@@ -127,7 +132,7 @@ enum class CanFault : std::uint32_t {
   heartbeat_lost = 1U << 3,
   node_rebooted = 1U << 4,
   node_not_operational = 1U << 5,
-  pdo_timeout = 1U << 6,        // a TPDO older than kMaxPdoAgeSyncs
+  pdo_timeout = 1U << 6,        // a TPDO older than max_pdo_age_syncs
   bad_pdo = 1U << 7,            // a TPDO of the wrong length for its mapping
 };
 const char* to_string(CanFault fault) noexcept;
