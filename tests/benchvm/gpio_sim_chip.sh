@@ -4,8 +4,10 @@
 # read back from their value. Guest side only (needs /sys/kernel/config/gpio-sim).
 #
 #   gpio_sim_chip.sh create DEVICE LABEL NAME...   one bank, one line per NAME (offset 0, 1, ...),
-#                                                  "-" leaves a line unnamed; prints the chip
-#                                                  name the kernel gave it (gpiochipN)
+#                                                  "-" leaves a line unnamed, NAME@DIRECTION
+#                                                  makes the line a hog held by the kernel
+#                                                  (input, output-high, output-low); prints the
+#                                                  chip name the kernel gave it (gpiochipN)
 #   gpio_sim_chip.sh chip DEVICE                   the chip name (read from configfs)
 #   gpio_sim_chip.sh press DEVICE OFFSET           pull-up: the input reads 1 (physical level)
 #   gpio_sim_chip.sh release DEVICE OFFSET         pull-down: the input reads 0
@@ -58,7 +60,12 @@ case "$cmd" in
     for name in "$@"; do
       if [ "$name" != - ]; then
         mkdir "$dir/bank0/line$offset"
-        echo "$name" >"$dir/bank0/line$offset/name"
+        echo "${name%@*}" >"$dir/bank0/line$offset/name"
+        if [[ $name == *@* ]]; then
+          mkdir "$dir/bank0/line$offset/hog"
+          echo "${name%@*}-hog" >"$dir/bank0/line$offset/hog/name"
+          echo "${name#*@}" >"$dir/bank0/line$offset/hog/direction"
+        fi
       fi
       offset=$((offset + 1))
     done
@@ -76,6 +83,7 @@ case "$cmd" in
     dir=$(sim_dir "$1")
     echo 0 >"$dir/live"
     for line in "$dir"/bank0/line*; do
+      [ ! -d "$line/hog" ] || rmdir "$line/hog"
       [ ! -d "$line" ] || rmdir "$line"
     done
     rmdir "$dir/bank0" "$dir"
