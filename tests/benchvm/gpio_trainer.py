@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""Runs inside the bench VM (benchvm run --gpio-sim): the whole trainer with its digital I/O on a
+gpio-sim chip (config/devices/gpio_sim_bench.toml: the simulated bench's motion, real kernel GPIO
+lines). The enable switch is held through its pull, the trainer arms (drive-enable line high),
+then the e-stop is pressed for half a loop period only and released; the drive-enable line must
+fall and stay low (a released e-stop never re-arms), the fault lamp light. Prints key=value
+lines; gpio_trainer_test.sh judges them together with the trainer's report.
+usage: gpio_trainer.py BIN_DIR SLOW_MOTION CYCLES"""
+import os
+import subprocess
+import sys
+import time
+
+CHIP_SH = "tests/benchvm/gpio_sim_chip.sh"
+PERIOD_S = 0.001  # config/scenes/wall.toml loop.period_us
+ESTOP, ENABLE, DRIVE_ENABLE, FAULT_LAMP = 0, 1, 2, 3
+
+
+def chip_sh(*args):
+    return subprocess.run([CHIP_SH, *args], check=True, capture_output=True, text=True).stdout.strip()
+
+
+def main():
+    bin_dir, slow, cycles = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    out = os.environ["BENCHVM_OUT"]
+    period = PERIOD_S * slow  # real seconds per cycle
+    chip = chip_sh("create", "trainer", "trainer-bench", "estop", "enable", "drive_enable",
+                   "fault_lamp")
+    dev = open("/sys/kernel/config/gpio-sim/trainer/dev_name").read().strip()
+    base = f"/sys/devices/platform/{dev}/{chip}"
+    value_files = {n: open(f"{base}/sim_gpio{n}/value", "rb", buffering=0)
+                   for n in (DRIVE_ENABLE, FAULT_LAMP)}
+
+    def value(n):
+        value_files[n].seek(0)
+        return int(value_files[n].read().strip())
+
+    estop_pull = os.open(f"{base}/sim_gpio{ESTOP}/pull", os.O_WRONLY)
+    print(f"chip={chip} dev={dev}")
+    chip_sh("press", "trainer", str(ENABLE))  # the enable switch held
+    print(f"before_start drive_enable={value(DRIVE_ENABLE)} fault_lamp={value(FAULT_LAMP)}")
+    trainer = subprocess.Popen(
+        [f"{bin_dir}/trainer", "--scene", "config/scenes/wall.toml",
+         "--device", "config/devices/gpio_sim_bench.toml", "--cycles", str(cycles),
+         "--slow-motion", str(slow), "--no-rt", "--overrun-streak-limit", "1000",
+         "--report", f"{out}/trainer.json"],
+        stdout=open(f"{out}/trainer.txt", "w"), stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 60
+    while value(DRIVE_ENABLE) != 1:
+        if trainer.poll() is not None or time.monotonic() > deadline:
+            print("armed=no")
+            trainer.wait()
+            return 1
+        time.sleep(0.001)
+    print("armed=yes")
+    print(f"armed_lamp fault_lamp={value(FAULT_LAMP)}")
+    time.sleep(1.0)
+    # A press of half a period.
+    t0 = time.monotonic()
+    os.write(estop_pull, b"pull-up")
+    t_up = time.monotonic()
+    while time.monotonic() - t0 < period / 2:
+        pass
+    os.write(estop_pull, b"pull-down")
+    t_down = time.monotonic()
+    print(f"press_held_ms={(t_down - t_up) * 1e3:.3f} period_ms={period * 1e3:.3f}")
+    fell = None
+    while time.monotonic() - t0 < 5.0:
+        if value(DRIVE_ENABLE) == 0:
+            fell = time.monotonic()
+            break
+    if fell is None:
+        print("drive_enable_fell=no")
+    else:
+        print(f"drive_enable_fell=yes after_ms={(fell - t0) * 1e3:.3f} "
+              f"after_periods={(fell - t0) / period:.2f}")
+    # Released e-stop: the line must stay low, the lamp lit, for the rest of the run.
+    rearmed = 0
+    samples = 0
+    lamp_off = 0
+    watch_until = time.monotonic() + 2.0
+    while time.monotonic() < watch_until and trainer.poll() is None:
+        rearmed += value(DRIVE_ENABLE)
+        lamp_off += 1 - value(FAULT_LAMP)
+        samples += 1
+        time.sleep(0.002)
+    print(f"after_release samples={samples} drive_enable_high={rearmed} fault_lamp_off={lamp_off}")
+    status = trainer.wait(timeout=120)
+    print(f"trainer_exit={status}")
+    # The trainer released its lines: gpio-sim outputs revert to their pull (down).
+    print(f"after_exit drive_enable={value(DRIVE_ENABLE)}")
+    chip_sh("remove", "trainer")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
