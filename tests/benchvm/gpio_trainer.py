@@ -5,7 +5,10 @@ lines). The enable switch is held through its pull, the trainer arms (drive-enab
 then the e-stop is pressed for half a loop period only and released; the drive-enable line must
 fall and stay low (a released e-stop never re-arms), the fault lamp light. Prints key=value
 lines; gpio_trainer_test.sh judges them together with the trainer's report.
-usage: gpio_trainer.py BIN_DIR SLOW_MOTION CYCLES"""
+usage: gpio_trainer.py NAME BIN_DIR SLOW_MOTION CYCLES [DEVICE_FILE [simdrive]]
+NAME prefixes the files it writes to $BENCHVM_OUT (NAME.trainer.json, NAME.trainer.txt, ...).
+DEVICE_FILE defaults to config/devices/gpio_sim_bench.toml; with "simdrive" the motion is a
+canopen device file's drives, run as simdrive on vcan0 (e.g. canopen_vcan_gpio.toml)."""
 import os
 import subprocess
 import sys
@@ -21,8 +24,10 @@ def chip_sh(*args):
 
 
 def main():
-    bin_dir, slow, cycles = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-    out = os.environ["BENCHVM_OUT"]
+    name, bin_dir, slow, cycles = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    device = sys.argv[5] if len(sys.argv) > 5 else "config/devices/gpio_sim_bench.toml"
+    with_simdrive = len(sys.argv) > 6 and sys.argv[6] == "simdrive"
+    out = os.path.join(os.environ["BENCHVM_OUT"], name)
     period = PERIOD_S * slow  # real seconds per cycle
     chip = chip_sh("create", "trainer", "trainer-bench", "estop", "enable", "drive_enable",
                    "fault_lamp")
@@ -36,20 +41,30 @@ def main():
         return int(value_files[n].read().strip())
 
     estop_pull = os.open(f"{base}/sim_gpio{ESTOP}/pull", os.O_WRONLY)
+    print(f"session {name}: {device}{' with simdrive' if with_simdrive else ''}, slow motion x{slow}")
     print(f"chip={chip} dev={dev}")
     chip_sh("press", "trainer", str(ENABLE))  # the enable switch held
     print(f"before_start drive_enable={value(DRIVE_ENABLE)} fault_lamp={value(FAULT_LAMP)}")
+    simdrive = None
+    if with_simdrive:
+        simdrive = subprocess.Popen(
+            ["chrt", "-f", "50", f"{bin_dir}/simdrive", "--scene", "config/scenes/wall.toml",
+             "--device", device, "--slow-motion", str(slow), "--no-stdin"],
+            stdout=open(f"{out}.simdrive.txt", "w"), stderr=subprocess.STDOUT)
     trainer = subprocess.Popen(
         [f"{bin_dir}/trainer", "--scene", "config/scenes/wall.toml",
-         "--device", "config/devices/gpio_sim_bench.toml", "--cycles", str(cycles),
+         "--device", device, "--cycles", str(cycles),
          "--slow-motion", str(slow), "--no-rt", "--overrun-streak-limit", "1000",
-         "--report", f"{out}/trainer.json"],
-        stdout=open(f"{out}/trainer.txt", "w"), stderr=subprocess.STDOUT)
+         "--report", f"{out}.trainer.json"],
+        stdout=open(f"{out}.trainer.txt", "w"), stderr=subprocess.STDOUT)
     deadline = time.monotonic() + 60
     while value(DRIVE_ENABLE) != 1:
         if trainer.poll() is not None or time.monotonic() > deadline:
             print("armed=no")
             trainer.wait()
+            if simdrive is not None:
+                simdrive.send_signal(2)
+                simdrive.wait()
             return 1
         time.sleep(0.001)
     print("armed=yes")
@@ -87,6 +102,9 @@ def main():
     print(f"after_release samples={samples} drive_enable_high={rearmed} fault_lamp_off={lamp_off}")
     status = trainer.wait(timeout=120)
     print(f"trainer_exit={status}")
+    if simdrive is not None:
+        simdrive.send_signal(2)
+        print(f"simdrive_exit={simdrive.wait(timeout=30)}")
     # The trainer released its lines: gpio-sim outputs revert to their pull (down).
     print(f"after_exit drive_enable={value(DRIVE_ENABLE)}")
     chip_sh("remove", "trainer")

@@ -43,6 +43,27 @@ TEST(GpioDeviceFile, CanopenWithGpioExampleLoads) {
   EXPECT_EQ(device->canopen.digital_inputs_node, -1);
 }
 
+TEST(GpioDeviceFile, BenchVmCanopenWithGpioLoads) {
+  auto device = load_device(repo_path("config/devices/canopen_vcan_gpio.toml"));
+  ASSERT_TRUE(device) << device.error().message;
+  EXPECT_EQ(device->backend, "canopen");
+  EXPECT_EQ(device->digital_io, DigitalIo::gpio);
+  EXPECT_EQ(device->canopen.interface, "vcan0");
+  EXPECT_EQ(device->gpio.inputs.size() + device->gpio.outputs.size(), 4U);
+}
+
+TEST_F(ConfigFileTest, CanopenDigitalNodeWithGpioIsRefused) {
+  const std::string text = read_text(repo_path("config/devices/canopen_vcan_gpio.toml"));
+  const auto edited = replace_first(text, "digital_inputs_node = -1 ", "digital_inputs_node = 1 ");
+  const auto path = write("devices/gpio.toml", edited.text);
+  auto result = load_device(path);
+  ASSERT_FALSE(result);
+  expect_contains(result.error().message,
+                  path.string() + ":" + std::to_string(edited.line) +
+                      ": canopen.digital_inputs_node = 1: expected -1: the digital words come "
+                      "from GPIO lines (device.digital_io = \"gpio\")");
+}
+
 TEST(GpioDeviceFile, DefaultIsTheBackendsOwnIo) {
   auto device = load_device(repo_path("config/devices/sim.toml"));
   ASSERT_TRUE(device) << device.error().message;
