@@ -268,3 +268,31 @@ TEST(GpioDevice, NoHeapOverManyCycles) {
 
 }  // namespace
 }  // namespace trainer::hal::gpiod
+
+namespace trainer::hal::gpiod {
+namespace {
+
+// The real libgpiod path where no such chip exists (this machine has no GPIO chip; on one that
+// has, the label below still names none): configure fails naming chip and line, nothing claimed.
+TEST(GpiodLineIo, MissingChipFailsConfigureNamingChipAndLine) {
+  GpioDeviceParams params;
+  params.name = "host";
+  params.lines = {input("gpio.input[0]", 0, "estop")};
+  params.lines[0].chip = "trainer-test-no-such-chip";
+  GpioDevice device(params);
+  auto configured = device.configure();
+  ASSERT_FALSE(configured);
+  EXPECT_EQ(configured.error().message.rfind(
+                "host: gpio.input[0]: chip 'trainer-test-no-such-chip' line 'estop': no such GPIO "
+                "chip (",
+                0),
+            0U)
+      << configured.error().message;
+  EXPECT_EQ(device.state(), LifecycleState::unconfigured);
+  std::uint32_t levels = 0;
+  EXPECT_EQ(device.read_digital_inputs(levels), ReturnCode::error);
+  device.deactivate();  // safe in any state
+}
+
+}  // namespace
+}  // namespace trainer::hal::gpiod
