@@ -69,7 +69,7 @@ def main():
         time.sleep(0.001)
     print("armed=yes")
     print(f"armed_lamp fault_lamp={value(FAULT_LAMP)}")
-    time.sleep(1.0)
+    time.sleep(0.3)
     # A press of half a period.
     t0 = time.monotonic()
     os.write(estop_pull, b"pull-up")
@@ -93,7 +93,7 @@ def main():
     rearmed = 0
     samples = 0
     lamp_off = 0
-    watch_until = time.monotonic() + 2.0
+    watch_until = time.monotonic() + 1.0
     while time.monotonic() < watch_until and trainer.poll() is None:
         rearmed += value(DRIVE_ENABLE)
         lamp_off += 1 - value(FAULT_LAMP)

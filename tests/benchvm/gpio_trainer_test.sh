@@ -14,8 +14,8 @@ mkdir -p "$work"
 cd "$src"
 status=0
 tools/benchvm/benchvm run --gpio-sim --smp 2 --timeout 300 --out "$work" -- bash -c "
-  python3 tests/benchvm/gpio_trainer.py sim '$bin' 8 1500 >'$work/sim.guest.txt' 2>&1; s=\$?
-  python3 tests/benchvm/gpio_trainer.py can '$bin' 16 800 config/devices/canopen_vcan_gpio.toml \
+  python3 tests/benchvm/gpio_trainer.py sim '$bin' 8 700 >'$work/sim.guest.txt' 2>&1; s=\$?
+  python3 tests/benchvm/gpio_trainer.py can '$bin' 16 450 config/devices/canopen_vcan_gpio.toml \
     simdrive >'$work/can.guest.txt' 2>&1; c=\$?
   cat '$work/sim.guest.txt' '$work/can.guest.txt'
   [ \$s -eq 0 ] && [ \$c -eq 0 ]" || status=$?
