@@ -8,7 +8,9 @@ CompositeDevice::CompositeDevice(std::string name, std::unique_ptr<Device> motio
                                  std::unique_ptr<Device> io)
     : name_(std::move(name)), motion_(std::move(motion)), io_(std::move(io)) {}
 
-CompositeDevice::~CompositeDevice() { deactivate(); }
+CompositeDevice::~CompositeDevice() {
+  deactivate();
+}
 
 core::Expected<void> CompositeDevice::configure() {
   if (auto configured = io_->configure(); !configured) return configured;

@@ -30,7 +30,9 @@ GpioDevice::GpioDevice(GpioDeviceParams params)
 GpioDevice::GpioDevice(GpioDeviceParams params, std::unique_ptr<LineIo> io)
     : params_(std::move(params)), io_(std::move(io)) {}
 
-GpioDevice::~GpioDevice() { deactivate(); }
+GpioDevice::~GpioDevice() {
+  deactivate();
+}
 
 core::Expected<void> GpioDevice::check_params() const {
   const std::string device = params_.name + ": ";
@@ -42,8 +44,8 @@ core::Expected<void> GpioDevice::check_params() const {
   for (std::size_t i = 0; i < params_.lines.size(); ++i) {
     const LineParams& line = params_.lines[i];
     if (line.bit < 0 || line.bit > 31) {
-      return core::make_error(device + line.config_key + " (" + describe_line(line) +
-                              "): bit " + std::to_string(line.bit) + " is not 0..31");
+      return core::make_error(device + line.config_key + " (" + describe_line(line) + "): bit " +
+                              std::to_string(line.bit) + " is not 0..31");
     }
     if (line.chip.empty() || (line.line_name.empty() && line.offset < 0)) {
       return core::make_error(device + line.config_key +
@@ -52,9 +54,9 @@ core::Expected<void> GpioDevice::check_params() const {
     for (std::size_t k = 0; k < i; ++k) {
       const LineParams& other = params_.lines[k];
       if (other.direction == line.direction && other.bit == line.bit) {
-        return core::make_error(device + line.config_key + " (" + describe_line(line) +
-                                "): bit " + std::to_string(line.bit) + " is already " +
-                                other.config_key + "'s");
+        return core::make_error(device + line.config_key + " (" + describe_line(line) + "): bit " +
+                                std::to_string(line.bit) + " is already " + other.config_key +
+                                "'s");
       }
     }
   }

@@ -26,7 +26,9 @@ constexpr unsigned kEventBatch = 16;
 // toggles faster than it can be read, which is "changed" already).
 constexpr int kMaxEventBatches = 4;
 
-std::string errno_text(int error) { return std::string(std::strerror(error)); }
+std::string errno_text(int error) {
+  return std::string(std::strerror(error));
+}
 
 int request_flags(const LineParams& line) {
   int flags = 0;
@@ -72,8 +74,8 @@ class GpiodLineIo final : public LineIo {
     active = value != 0;
     std::array<gpiod_line_event, kEventBatch> events{};
     for (int batch = 0; batch < kMaxEventBatches; ++batch) {
-      const int count = gpiod_line_event_read_fd_multiple(line.event_fd, events.data(),
-                                                          kEventBatch);
+      const int count =
+          gpiod_line_event_read_fd_multiple(line.event_fd, events.data(), kEventBatch);
       if (count < 0) {
         if (errno == EAGAIN || errno == EWOULDBLOCK) break;
         return ReturnCode::error;
@@ -148,8 +150,8 @@ class GpiodLineIo final : public LineIo {
     }
     if (chip_count_ == kMaxChips) {
       gpiod_chip_close(chip);
-      return core::make_error(params.config_key + ": " + describe_line(params) +
-                              ": more than " + std::to_string(kMaxChips) + " GPIO chips");
+      return core::make_error(params.config_key + ": " + describe_line(params) + ": more than " +
+                              std::to_string(kMaxChips) + " GPIO chips");
     }
     chips_[chip_count_++] = chip;
     return chip;
@@ -191,8 +193,8 @@ class GpiodLineIo final : public LineIo {
                                 std::string(user != nullptr ? user : "(kernel)") + "' as " +
                                 (output ? "an output" : "an input"));
       }
-      lines_[i] = Line{line, *chip, params.direction == Direction::input,
-                       request_flags(params), -1};
+      lines_[i] =
+          Line{line, *chip, params.direction == Direction::input, request_flags(params), -1};
     }
     for (std::size_t i = 0; i < lines.size(); ++i) {
       Line& line = lines_[i];
@@ -287,6 +289,8 @@ class GpiodLineIo final : public LineIo {
 
 }  // namespace
 
-std::unique_ptr<LineIo> make_gpiod_line_io() { return std::make_unique<GpiodLineIo>(); }
+std::unique_ptr<LineIo> make_gpiod_line_io() {
+  return std::make_unique<GpiodLineIo>();
+}
 
 }  // namespace trainer::hal::gpiod

@@ -12,9 +12,7 @@
 namespace trainer::hal {
 namespace {
 
-class RecordingDevice final : public Device,
-                              public EncoderInterface,
-                              public DigitalInputInterface {
+class RecordingDevice final : public Device, public EncoderInterface, public DigitalInputInterface {
  public:
   RecordingDevice(std::string name, std::vector<std::string>& journal)
       : name_(std::move(name)), journal_(journal) {}

@@ -36,7 +36,8 @@ struct ScriptedLines {
 class ScriptedLineIo final : public LineIo {
  public:
   explicit ScriptedLineIo(ScriptedLines& lines) : lines_(lines) {}
-  core::Expected<void> claim(std::span<const LineParams> lines, std::string_view consumer) override {
+  core::Expected<void> claim(std::span<const LineParams> lines,
+                             std::string_view consumer) override {
     if (lines_.fail_claim) {
       return core::make_error(lines[0].config_key + ": " + describe_line(lines[0]) +
                               ": already used by 'other' as an input");

@@ -83,8 +83,8 @@ int list(const char* chip_name) {
 }
 
 int get(const char* chip, const char* offset) {
-  const int value = gpiod_ctxless_get_value(chip, static_cast<unsigned>(std::atoi(offset)), false,
-                                            "gpiod-bench");
+  const int value =
+      gpiod_ctxless_get_value(chip, static_cast<unsigned>(std::atoi(offset)), false, "gpiod-bench");
   if (value < 0) {
     std::fprintf(stderr, "gpiod_bench: get %s %s: %s\n", chip, offset, std::strerror(errno));
     return 1;
@@ -131,8 +131,8 @@ void try_case(const char* label, std::vector<gpio::LineParams> lines) {
 int configure_cases(const std::string& chip) {
   // Offsets of gpio_sim_chip.sh's bench chip: 0 estop, 1 enable, 2 drive_enable,
   // 3 fault_lamp, 4 unnamed, 5 hogged (output-high).
-  try_case("by-name", {in_line(chip, "estop", 0), in_line(chip, "enable", 1),
-                       out_line(chip, 2, 0), out_line(chip, 3, 1)});
+  try_case("by-name", {in_line(chip, "estop", 0), in_line(chip, "enable", 1), out_line(chip, 2, 0),
+                       out_line(chip, 3, 1)});
   {
     gpiod_chip* by_path = gpiod_chip_open_lookup(chip.c_str());
     const std::string path = std::string("/dev/") + gpiod_chip_name(by_path);
@@ -168,7 +168,7 @@ constexpr std::uint64_t kGiveUpReads = 100;
 struct Trial {
   std::atomic<std::uint64_t> reads{0};
   std::atomic<int> current_press{-1};
-  std::atomic<int> latched_press{-1};       // the last press a read reported
+  std::atomic<int> latched_press{-1};         // the last press a read reported
   std::atomic<std::uint64_t> clean_reads{0};  // consecutive reads with the e-stop inactive
   std::atomic<bool> done{false};
 };
@@ -243,11 +243,10 @@ int presses(const std::string& chip, const char* pull_file, int count, int perio
       (void)pulses_before;
       const std::uint64_t index = trial.reads.fetch_add(1, std::memory_order_acq_rel) + 1;
       if (index < trace.size()) {
-        trace[index] = ReadTrace{now_ns(), press, static_cast<std::uint8_t>(levels & 1U),
-                                 static_cast<std::uint8_t>(device.stats().changed_reads[0] !=
-                                                           last_changed),
-                                 static_cast<std::uint8_t>(device.stats().pulses_latched[0] !=
-                                                           last_pulses)};
+        trace[index] =
+            ReadTrace{now_ns(), press, static_cast<std::uint8_t>(levels & 1U),
+                      static_cast<std::uint8_t>(device.stats().changed_reads[0] != last_changed),
+                      static_cast<std::uint8_t>(device.stats().pulses_latched[0] != last_pulses)};
       }
       last_changed = device.stats().changed_reads[0];
       last_pulses = device.stats().pulses_latched[0];
@@ -323,10 +322,11 @@ int presses(const std::string& chip, const char* pull_file, int count, int perio
   std::vector<int> latency_hist(4, 0);
   for (std::size_t i = 0; i < static_cast<std::size_t>(made); ++i) {
     if (latched[i] == 0) {
-      std::printf("press %zu NOT latched (held %.3f ms); reads from the one before it (ms from "
-                  "the press's start, current press, bit, changed, pulse), release at %.3f ms:\n",
-                  i, static_cast<double>(held_ns[i]) / 1e6,
-                  static_cast<double>(release_t[i] - press_t[i]) / 1e6);
+      std::printf(
+          "press %zu NOT latched (held %.3f ms); reads from the one before it (ms from "
+          "the press's start, current press, bit, changed, pulse), release at %.3f ms:\n",
+          i, static_cast<double>(held_ns[i]) / 1e6,
+          static_cast<double>(release_t[i] - press_t[i]) / 1e6);
       const std::uint64_t first = press_read[i];
       for (std::uint64_t r = first; r < first + 8 && r < trace.size(); ++r) {
         std::printf("  read %llu: %.3f ms press %d bit %u changed %u pulse %u\n",
@@ -345,17 +345,18 @@ int presses(const std::string& chip, const char* pull_file, int count, int perio
   }
   const std::int64_t max_held =
       *std::max_element(held_ns.begin(), held_ns.begin() + std::max(made, 1));
-  std::printf("presses %d latched %d within_one_period %d latched_within_one_period %d "
-              "max_held_ms %.3f period_ms %.3f reads %llu read_errors %llu "
-              "reads_reporting_latch_against_level %llu latency_reads_1 %d latency_reads_2 %d "
-              "latency_reads_3plus %d max_latency_reads %llu heap_allocations_in_reader %llu\n",
-              made, latched_count, within_period, latched_within_period,
-              static_cast<double>(max_held) / 1e6, static_cast<double>(period_ns) / 1e6,
-              static_cast<unsigned long long>(trial.reads.load()),
-              static_cast<unsigned long long>(read_errors),
-              static_cast<unsigned long long>(device.stats().pulses_latched[0]), latency_hist[1],
-              latency_hist[2], latency_hist[3], static_cast<unsigned long long>(max_latency),
-              static_cast<unsigned long long>(heap));
+  std::printf(
+      "presses %d latched %d within_one_period %d latched_within_one_period %d "
+      "max_held_ms %.3f period_ms %.3f reads %llu read_errors %llu "
+      "reads_reporting_latch_against_level %llu latency_reads_1 %d latency_reads_2 %d "
+      "latency_reads_3plus %d max_latency_reads %llu heap_allocations_in_reader %llu\n",
+      made, latched_count, within_period, latched_within_period,
+      static_cast<double>(max_held) / 1e6, static_cast<double>(period_ns) / 1e6,
+      static_cast<unsigned long long>(trial.reads.load()),
+      static_cast<unsigned long long>(read_errors),
+      static_cast<unsigned long long>(device.stats().pulses_latched[0]), latency_hist[1],
+      latency_hist[2], latency_hist[3], static_cast<unsigned long long>(max_latency),
+      static_cast<unsigned long long>(heap));
   return latched_count == made && within_period >= count && heap == 0 ? 0 : 1;
 }
 
@@ -369,8 +370,9 @@ int main(int argc, char** argv) {
   if (command == "presses" && argc == 6) {
     return presses(argv[2], argv[3], std::atoi(argv[4]), std::atoi(argv[5]));
   }
-  std::fprintf(stderr,
-               "usage: gpiod_bench list CHIP | get CHIP OFFSET | configure CHIP | presses CHIP PULL_FILE N "
-               "PERIOD_US\n");
+  std::fprintf(
+      stderr,
+      "usage: gpiod_bench list CHIP | get CHIP OFFSET | configure CHIP | presses CHIP PULL_FILE N "
+      "PERIOD_US\n");
   return 2;
 }

@@ -99,8 +99,9 @@ const GpioErrorCase kGpioErrorCases[] = {
     {"digital_io_unknown", "digital_io = \"gpio\"", "digital_io = \"gpiod\"",
      "device.digital_io = \"gpiod\": expected one of: backend, gpio"},
     {"bit_out_of_range", "bit = 0                            # bit of the input word",
-     "bit = 32 # bit of the input word", "gpio.input[0].bit = 32 is out of range: expected 0 to 31 (bit of the digital "
-                 "input word)"},
+     "bit = 32 # bit of the input word",
+     "gpio.input[0].bit = 32 is out of range: expected 0 to 31 (bit of the digital "
+     "input word)"},
     {"bit_twice", "bit = 1\n", "bit = 0\n",
      "gpio.input[1].bit = 0 is already used by gpio.input[0].bit: expected one line per bit"},
     {"line_and_offset", "line = \"estop\"", "offset = 0\nline = \"estop\"",

@@ -60,10 +60,10 @@ enum class Latch : std::uint8_t { active, inactive };
 struct LineParams {
   std::string config_key;  // how messages name it, e.g. "gpio.input[0]"
   Direction direction = Direction::input;
-  int bit = -1;            // bit of the HAL input or output word, 0..31
-  std::string chip;        // label, "gpiochipN" or a path
-  std::string line_name;   // the line's name, or empty when `offset` names it
-  int offset = -1;         // the line's offset on the chip when line_name is empty
+  int bit = -1;           // bit of the HAL input or output word, 0..31
+  std::string chip;       // label, "gpiochipN" or a path
+  std::string line_name;  // the line's name, or empty when `offset` names it
+  int offset = -1;        // the line's offset on the chip when line_name is empty
   bool active_low = false;
   Bias bias = Bias::as_is;
   Latch latch = Latch::active;  // inputs only
