@@ -1,5 +1,7 @@
 #include "trainer/app/device_wiring.hpp"
 
+#include "trainer/hal/composite_device.hpp"
+
 namespace trainer::app {
 
 hal::sim::SimDeviceParams sim_params_from(const config::SceneConfig& scene) {
@@ -76,12 +78,47 @@ hal::socketcan::CanopenDeviceParams canopen_params_from(const config::SceneConfi
   return params;
 }
 
+hal::gpiod::GpioDeviceParams gpio_params_from(const config::DeviceConfig& device) {
+  hal::gpiod::GpioDeviceParams params;
+  params.name = device.name + " GPIO";
+  params.consumer = device.gpio.consumer;
+  const auto add = [&](const config::GpioLineConfig& line, hal::gpiod::Direction direction) {
+    hal::gpiod::LineParams out;
+    out.config_key = line.key;
+    out.direction = direction;
+    out.bit = line.bit;
+    out.chip = line.chip;
+    out.line_name = line.line_name;
+    out.offset = line.offset;
+    out.active_low = line.active_low;
+    out.bias = static_cast<hal::gpiod::Bias>(line.bias);
+    out.latch = line.latch == config::GpioLatch::active ? hal::gpiod::Latch::active
+                                                         : hal::gpiod::Latch::inactive;
+    params.lines.push_back(std::move(out));
+  };
+  for (const config::GpioLineConfig& line : device.gpio.inputs) {
+    add(line, hal::gpiod::Direction::input);
+  }
+  for (const config::GpioLineConfig& line : device.gpio.outputs) {
+    add(line, hal::gpiod::Direction::output);
+  }
+  return params;
+}
+
+std::unique_ptr<hal::Device> with_digital_io(const config::DeviceConfig& device,
+                                             std::unique_ptr<hal::Device> motion) {
+  if (device.digital_io != config::DigitalIo::gpio) return motion;
+  return std::make_unique<hal::CompositeDevice>(
+      device.name, std::move(motion),
+      std::make_unique<hal::gpiod::GpioDevice>(gpio_params_from(device)));
+}
+
 core::Expected<std::unique_ptr<hal::Device>> make_hardware_device(
     const config::SceneConfig& scene, core::Clock& clock) {
   const config::DeviceConfig& device = scene.device;
   if (device.backend == "canopen") {
-    return std::unique_ptr<hal::Device>(
-        std::make_unique<hal::socketcan::CanopenDevice>(clock, canopen_params_from(scene)));
+    return with_digital_io(
+        device, std::make_unique<hal::socketcan::CanopenDevice>(clock, canopen_params_from(scene)));
   }
   return core::make_error(device.source_path.string() + ": backend '" + device.backend +
                           "' has no hardware device in this build");

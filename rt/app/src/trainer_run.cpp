@@ -131,10 +131,12 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
     setup.clock = std::make_unique<core::MonotonicClock>();
   }
   setup.backend = simulated_bench ? "sim" : cfg.device.backend;
+  if (cfg.device.digital_io == config::DigitalIo::gpio) setup.backend += "+gpio";
   if (simulated_bench) {
     auto sim = std::make_unique<hal::sim::SimDevice>(*setup.clock, sim_params_from(cfg));
     setup.sim = sim.get();
-    setup.device = std::move(sim);
+    // The simulated motion with the device file's real GPIO lines when it names them.
+    setup.device = with_digital_io(cfg.device, std::move(sim));
   } else {
     auto device = make_hardware_device(cfg, *setup.clock);
     if (!device) return std::move(device).error();

@@ -54,7 +54,8 @@ using detail::RealRange;
 using detail::TableReader;
 
 constexpr std::array<std::string_view, 2> kBackends = {"sim", "canopen"};
-constexpr std::string_view kBackendNote = "gpiod and usb backends are not implemented yet";
+constexpr std::string_view kBackendNote =
+    "GPIO lines combine with either through [device] digital_io = \"gpio\"";
 constexpr std::size_t kCanopenBackend = 1;
 
 // [canopen] ranges (docs/config.md). Heartbeat times are u16 milliseconds in the drives'
@@ -393,6 +394,111 @@ void check_digital_nodes(const CanopenConfig& bus, const NodeOwners& owners, Tab
   }
 }
 
+// --- [gpio]: digital I/O on GPIO lines (digital_io = "gpio") ---------------------------------
+
+constexpr std::array<std::string_view, 2> kDigitalIoChoices = {"backend", "gpio"};
+constexpr std::array<std::string_view, 4> kGpioBiasChoices = {"as-is", "disable", "pull-up",
+                                                              "pull-down"};
+constexpr std::array<std::string_view, 2> kGpioLatchChoices = {"active", "inactive"};
+constexpr IntRange kGpioBitRange{0, 31};
+constexpr IntRange kGpioOffsetRange{0, 511};
+
+GpioLineConfig read_gpio_line(TableReader& table, bool input, const DigitalConfig& digital,
+                              ErrorSink& errors) {
+  GpioLineConfig line;
+  line.key = table.prefix();
+  line.bit = static_cast<int>(table.required_int(
+      "bit", kGpioBitRange, input ? "bit of the digital input word" : "bit of the digital output word"));
+  line.chip = table.required_string("chip", "the GPIO chip: its label, gpiochipN or /dev/gpiochipN");
+  const bool named = table.has("line");
+  const bool numbered = table.has("offset");
+  if (named) line.line_name = table.required_string("line", "the line's name");
+  if (numbered) {
+    line.offset = static_cast<int>(table.required_int("offset", kGpioOffsetRange, "line offset on the chip"));
+  }
+  if (errors.ok() && named && numbered) {
+    table.fail_value("offset", ": expected either line (a name) or offset, not both");
+  } else if (errors.ok() && !named && !numbered) {
+    (void)table.required_string("line", "the line's name, or give offset");
+  }
+  line.active_low = table.optional_bool("active_low", false);
+  if (table.has("bias")) {
+    const auto bias = table.required_choice("bias", kGpioBiasChoices);
+    if (bias) line.bias = static_cast<GpioBias>(*bias);
+  }
+  if (input) {
+    // The enable (dead-man) switch latches its release; everything else its press.
+    line.latch = line.bit == digital.enable_input_bit ? GpioLatch::inactive : GpioLatch::active;
+    if (table.has("latch")) {
+      const auto latch = table.required_choice("latch", kGpioLatchChoices);
+      if (latch) line.latch = static_cast<GpioLatch>(*latch);
+    }
+  }
+  table.finish();
+  return line;
+}
+
+GpioConfig read_gpio(TableReader& table, const DigitalConfig& digital, ErrorSink& errors) {
+  GpioConfig gpio;
+  gpio.consumer = table.optional_string("consumer", "the lines' user name").value_or("trainer");
+  if (errors.ok() && (gpio.consumer.empty() || gpio.consumer.size() > 31)) {
+    table.fail_value("consumer", ": expected 1..31 characters");
+  }
+  auto inputs = table.array_of_tables("input", 0, kMaxGpioLines, "input lines");
+  auto outputs = table.array_of_tables("output", 0, kMaxGpioLines, "output lines");
+  for (auto& entry : inputs) gpio.inputs.push_back(read_gpio_line(entry, true, digital, errors));
+  for (auto& entry : outputs) gpio.outputs.push_back(read_gpio_line(entry, false, digital, errors));
+  if (errors.ok() && gpio.inputs.size() + gpio.outputs.size() > kMaxGpioLines) {
+    table.fail_value(gpio.outputs.empty() ? "input" : "output",
+                     ": too many lines: expected at most " + std::to_string(kMaxGpioLines) +
+                         " inputs and outputs together");
+  }
+  // One line per bit in each word.
+  for (auto* list : {&gpio.inputs, &gpio.outputs}) {
+    auto& readers = list == &gpio.inputs ? inputs : outputs;
+    for (std::size_t i = 0; errors.ok() && i < list->size(); ++i) {
+      for (std::size_t k = 0; errors.ok() && k < i; ++k) {
+        if ((*list)[i].bit == (*list)[k].bit) {
+          readers[i].fail_value("bit", " is already used by " + readers[k].qualified("bit") +
+                                           ": expected one line per bit");
+        }
+      }
+    }
+  }
+  table.finish();
+  return gpio;
+}
+
+// Every wired [digital] bit needs its line: an e-stop bit without a line would read "released"
+// for ever.
+void check_gpio_wiring(const DeviceConfig& config, TableReader& digital_table, ErrorSink& errors) {
+  const auto has_bit = [](const std::vector<GpioLineConfig>& lines, int bit) {
+    for (const GpioLineConfig& line : lines) {
+      if (line.bit == bit) return true;
+    }
+    return false;
+  };
+  const DigitalConfig& digital = config.digital;
+  const std::array<std::pair<std::string_view, int>, 2> inputs = {
+      std::pair{std::string_view("estop_input_bit"), digital.estop_input_bit},
+      std::pair{std::string_view("enable_input_bit"), digital.enable_input_bit}};
+  for (const auto& [key, bit] : inputs) {
+    if (errors.ok() && bit != kNotWired && !has_bit(config.gpio.inputs, bit)) {
+      digital_table.fail_value(key, ": digital_io = \"gpio\" but no [[gpio.input]] has bit = " +
+                                        std::to_string(bit) + " (-1 = not wired)");
+    }
+  }
+  const std::array<std::pair<std::string_view, int>, 2> outputs = {
+      std::pair{std::string_view("drive_enable_output_bit"), digital.drive_enable_output_bit},
+      std::pair{std::string_view("fault_lamp_output_bit"), digital.fault_lamp_output_bit}};
+  for (const auto& [key, bit] : outputs) {
+    if (errors.ok() && bit != kNotWired && !has_bit(config.gpio.outputs, bit)) {
+      digital_table.fail_value(key, ": digital_io = \"gpio\" but no [[gpio.output]] has bit = " +
+                                        std::to_string(bit) + " (-1 = not wired)");
+    }
+  }
+}
+
 DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   DeviceConfig config;
   config.source_path = parsed.file.absolute_path;
@@ -406,10 +512,22 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   config.plant_substep_ns = device.optional_int("plant_substep_us", kDefaultPlantSubstepUs,
                                                 kPlantSubstepRangeUs, "microseconds") *
                             kNanosecondsPerMicrosecond;
+  if (device.has("digital_io")) {
+    const auto digital_io = device.required_choice("digital_io", kDigitalIoChoices);
+    if (digital_io) config.digital_io = static_cast<DigitalIo>(*digital_io);
+  }
   device.finish();
 
   TableReader digital = root.required_table("digital");
   config.digital = read_digital(digital, errors);
+
+  // [gpio] belongs to digital_io = "gpio": otherwise root.finish() reports it as unknown.
+  std::optional<TableReader> gpio_table;
+  if (config.digital_io == DigitalIo::gpio) {
+    gpio_table.emplace(root.required_table("gpio"));
+    config.gpio = read_gpio(*gpio_table, config.digital, errors);
+    check_gpio_wiring(config, digital, errors);
+  }
 
   // [canopen] belongs to the canopen backend: for any other backend root.finish() reports it
   // as an unknown table.
@@ -434,6 +552,16 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
     config.instruments.push_back(std::move(instrument));
   }
   if (canopen_table) check_digital_nodes(config.canopen, owners, *canopen_table, errors);
+  if (canopen_table && config.digital_io == DigitalIo::gpio) {
+    for (std::string_view key : {"digital_inputs_node", "digital_outputs_node"}) {
+      const int node = key == "digital_inputs_node" ? config.canopen.digital_inputs_node
+                                                    : config.canopen.digital_outputs_node;
+      if (errors.ok() && node != -1) {
+        canopen_table->fail_value(key, ": expected -1: the digital words come from GPIO lines "
+                                       "(device.digital_io = \"gpio\")");
+      }
+    }
+  }
   root.finish();
   return config;
 }

@@ -297,8 +297,8 @@ const DeviceErrorCase kDeviceErrorCases[] = {
     {"substep_upper", "plant_substep_us = 100", "plant_substep_us = 1001",
      "device.plant_substep_us = 1001 is out of range: expected 1 to 1000 (microseconds)"},
     {"unknown_backend", "backend = \"sim\"", "backend = \"socketcan\"",
-     "device.backend = \"socketcan\": expected one of: sim, canopen (gpiod and usb backends "
-     "are not implemented yet)"},
+     "device.backend = \"socketcan\": expected one of: sim, canopen (GPIO lines combine with "
+     "either through [device] digital_io = \"gpio\")"},
     {"device_name", "name = \"sim-two-port\"", "name = \"sim two port\"",
      "device.name = \"sim two port\": expected a name of 1 to 32 characters from A-Z, a-z, "
      "0-9, '_' and '-'"},
@@ -387,7 +387,7 @@ TEST_F(DeviceFileTest, KeysInTheWrongTableAreUnknownThere) {
   expect_contains(message, path.string() + ":" +
                                std::to_string(line_of(edited.text, "estop_input_bit")) +
                                ": unknown key 'device.estop_input_bit' (known: name, backend, "
-                               "plant_substep_us)");
+                               "plant_substep_us, digital_io)");
 }
 
 // ---------------------------------------------------------------- backend "canopen"

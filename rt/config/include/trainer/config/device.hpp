@@ -114,6 +114,32 @@ struct CanopenConfig {
   int digital_outputs_node = -1;           // node whose 0x60FE:01 bits 16..31 are the outputs
 };
 
+// Where the digital words ([digital] bits) come from: the backend's own I/O (the simulated
+// bench's switches, a CANopen drive's digital inputs/outputs) or GPIO lines ([gpio], hal/gpiod).
+enum class DigitalIo : std::uint8_t { backend, gpio };
+enum class GpioBias : std::uint8_t { as_is, disable, pull_up, pull_down };
+// Which level an input reports for a read after which it changed (docs/gpio.md).
+enum class GpioLatch : std::uint8_t { active, inactive };
+
+// One GPIO line ([[gpio.input]] / [[gpio.output]]): a bit of the HAL input or output word.
+struct GpioLineConfig {
+  std::string key;         // qualified, e.g. "gpio.input[0]", for messages
+  int bit = -1;            // 0..31
+  std::string chip;        // label, "gpiochipN" or a path
+  std::string line_name;   // the line's name; empty when `offset` names it
+  int offset = -1;         // the line's offset on the chip when line_name is empty
+  bool active_low = false;
+  GpioBias bias = GpioBias::as_is;
+  GpioLatch latch = GpioLatch::active;  // inputs only
+};
+
+struct GpioConfig {
+  std::string consumer;                 // the lines' user as gpioinfo shows it
+  std::vector<GpioLineConfig> inputs;   // at most kMaxGpioLines in all
+  std::vector<GpioLineConfig> outputs;
+};
+inline constexpr std::size_t kMaxGpioLines = 16;
+
 struct DeviceConfig {
   std::filesystem::path source_path;  // absolute, lexically normal path of the file loaded
   std::string name;
@@ -122,6 +148,8 @@ struct DeviceConfig {
   DigitalConfig digital;
   std::vector<InstrumentDeviceConfig> instruments;  // 1..kMaxDeviceInstruments, names unique
   CanopenConfig canopen;              // [canopen], backend "canopen" only
+  DigitalIo digital_io = DigitalIo::backend;  // [device] digital_io
+  GpioConfig gpio;                    // [gpio], digital_io = "gpio" only
 };
 
 // Loads and validates a device file. On failure the message names the file, the line (when
