@@ -332,7 +332,9 @@ int main(int argc, char** argv) {
   // --- 5. the watchdog ---
   check(probe.set_watchdog(options.trip_watchdog_ms) == 0, "SET_WATCHDOG for the trip");
   check(probe.send(up::kOutFlagEnable, channels, options.current_ma) == 0, "last report before silence");
-  (void)probe.receive(in, decoded, options.timeout_ms);
+  check(probe.receive(in, decoded, options.timeout_ms) == 0 && decoded == up::DecodeStatus::ok &&
+            (in.status & up::kStatusEnabled) != 0 && in.out_sequence_applied == probe.out_sequence(),
+        "the last report before silence is answered, enabled (SET_WATCHDOG did not trip at once)");
   const auto silent_from = std::chrono::steady_clock::now();
   up::InReport trip;
   const int trip_status = probe.receive(trip, decoded, options.trip_watchdog_ms * 20 + 2000);
