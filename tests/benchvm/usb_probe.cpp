@@ -197,12 +197,27 @@ struct PacedRun {
   int out_skipped_busy = 0;
   bool stopping = false;
   int in_active = 0;
+  std::array<int, 8> out_error_status{};  // index = libusb_transfer_status
+  std::array<int, 8> in_error_status{};
 };
 
 std::int64_t now_ns_monotonic() {
   timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now);
   return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+}
+
+const char* transfer_status_name(int status) {
+  switch (status) {
+    case LIBUSB_TRANSFER_COMPLETED: return "COMPLETED";
+    case LIBUSB_TRANSFER_ERROR: return "ERROR";
+    case LIBUSB_TRANSFER_TIMED_OUT: return "TIMED_OUT";
+    case LIBUSB_TRANSFER_CANCELLED: return "CANCELLED";
+    case LIBUSB_TRANSFER_STALL: return "STALL";
+    case LIBUSB_TRANSFER_NO_DEVICE: return "NO_DEVICE";
+    case LIBUSB_TRANSFER_OVERFLOW: return "OVERFLOW";
+    default: return "?";
+  }
 }
 
 void LIBUSB_CALL paced_in_done(libusb_transfer* transfer) {
@@ -224,13 +239,25 @@ void LIBUSB_CALL paced_in_done(libusb_transfer* transfer) {
     }
   } else if (transfer->status != LIBUSB_TRANSFER_CANCELLED && transfer->status != LIBUSB_TRANSFER_TIMED_OUT) {
     ++run.in_transfer_errors;
+    ++run.in_error_status[static_cast<std::size_t>(transfer->status) & 7U];
   }
   if (run.stopping || libusb_submit_transfer(transfer) != 0) --run.in_active;
 }
 
+// user_data of an OUT transfer: the run and the slot's busy flag.
+struct OutSlot {
+  PacedRun* run = nullptr;
+  bool busy = false;
+};
+
 void LIBUSB_CALL paced_out_done(libusb_transfer* transfer) {
-  auto& run = *static_cast<PacedRun*>(transfer->user_data);
-  if (transfer->status != LIBUSB_TRANSFER_COMPLETED) ++run.out_transfer_errors;
+  auto& slot = *static_cast<OutSlot*>(transfer->user_data);
+  slot.busy = false;
+  auto& run = *slot.run;
+  if (transfer->status != LIBUSB_TRANSFER_COMPLETED) {
+    ++run.out_transfer_errors;
+    ++run.out_error_status[static_cast<std::size_t>(transfer->status) & 7U];
+  }
   --run.out_in_flight;
 }
 
@@ -262,7 +289,9 @@ PacedResult paced_run(libusb_context* context, libusb_device_handle* handle, con
   constexpr int kOutSlots = 4;
   std::array<std::array<unsigned char, up::kReportSize>, kOutSlots> out_buffers{};
   std::array<libusb_transfer*, kOutSlots> out_transfers{};
+  std::array<OutSlot, kOutSlots> out_slots{};
   for (auto& transfer : out_transfers) transfer = libusb_alloc_transfer(0);
+  for (auto& slot : out_slots) slot.run = run.get();
 
   PacedResult result;
   const std::int64_t period_ns = static_cast<std::int64_t>(options.period_us) * 1000;
@@ -280,7 +309,11 @@ PacedResult paced_run(libusb_context* context, libusb_device_handle* handle, con
       if (run->have_newest && up::sequence_distance(run->last_sent, run->newest.out_sequence_applied) > 2) ++result.stale;
     }
     run->in_since_tick = false;
-    if (run->out_in_flight >= kOutSlots) {
+    std::size_t free_slot = kOutSlots;
+    for (std::size_t i = 0; i < kOutSlots && free_slot == kOutSlots; ++i) {
+      if (!out_slots[i].busy) free_slot = i;
+    }
+    if (free_slot == kOutSlots) {
       ++result.skipped;
       continue;
     }
@@ -288,13 +321,14 @@ PacedResult paced_run(libusb_context* context, libusb_device_handle* handle, con
     out.sequence = static_cast<std::uint16_t>(run->last_sent + 1);
     out.flags = up::kOutFlagEnable;
     out.channel_count = channels;
-    auto& buffer = out_buffers[static_cast<std::size_t>(frame % kOutSlots)];
-    auto* transfer = out_transfers[static_cast<std::size_t>(frame % kOutSlots)];
+    auto& buffer = out_buffers[free_slot];
+    auto* transfer = out_transfers[free_slot];
     up::encode(out, std::span<std::uint8_t, up::kReportSize>(buffer.data(), up::kReportSize));
     libusb_fill_interrupt_transfer(transfer, handle, ep.out, buffer.data(), static_cast<int>(up::kReportSize),
-                                   paced_out_done, run.get(), static_cast<unsigned>(options.timeout_ms));
+                                   paced_out_done, &out_slots[free_slot], static_cast<unsigned>(options.timeout_ms));
     run->sent_ns[out.sequence] = now_ns_monotonic();
     if (libusb_submit_transfer(transfer) == 0) {
+      out_slots[free_slot].busy = true;
       ++run->out_in_flight;
       run->last_sent = out.sequence;
       ++result.frames;
@@ -322,6 +356,16 @@ PacedResult paced_run(libusb_context* context, libusb_device_handle* handle, con
   result.errors = run->in_decode_errors + run->in_transfer_errors + run->out_transfer_errors;
   std::printf("usb_probe: paced: IN reports %d, decode errors %d, IN transfer errors %d, OUT transfer errors %d\n",
               run->in_reports, run->in_decode_errors, run->in_transfer_errors, run->out_transfer_errors);
+  for (std::size_t i = 0; i < run->out_error_status.size(); ++i) {
+    if (run->out_error_status[i] > 0) {
+      std::printf("usb_probe: paced: %d OUT transfers ended %s\n", run->out_error_status[i],
+                  transfer_status_name(static_cast<int>(i)));
+    }
+    if (run->in_error_status[i] > 0) {
+      std::printf("usb_probe: paced: %d IN transfers ended %s\n", run->in_error_status[i],
+                  transfer_status_name(static_cast<int>(i)));
+    }
+  }
   return result;
 }
 
