@@ -40,8 +40,8 @@ start_gadget() {  # [extra usbgadget options]
 }
 status=0
 
-# A gadget killed with SIGKILL stays in configfs, bound; the next start must refuse it, and take
-# it apart with --remove-stale.
+# A gadget killed with SIGKILL stays in configfs (the kernel unbinds it when ep0 closes) with its
+# functionfs mounted; the next start must refuse it, and take it apart with --remove-stale.
 start_gadget
 wait_for_device || { echo "FAIL: no USB device with serial $serial enumerated"; cat "$out/gadget.txt"; exit 10; }
 kill -KILL "$pid"; wait "$pid" 2>/dev/null
