@@ -282,6 +282,13 @@ core::Expected<void> UsbDevice::configure() {
     return core::make_error(params_.name + ": configure() needs an unconfigured device "
                             "(deactivate first)");
   }
+  if (static_cast<std::int64_t>(params_.watchdog_ms) * 1'000'000 < 2 * params_.loop_period_ns) {
+    return core::make_error(params_.name + ": usb.watchdog_ms = " +
+                            std::to_string(params_.watchdog_ms) +
+                            " is shorter than two loop periods (" +
+                            std::to_string(params_.loop_period_ns / 1000) +
+                            " us each): the device would drop the currents between commands");
+  }
   std::vector<hal::JointScale> scales;
   for (const UsbChannelParams& channel : params_.channels) scales.push_back(channel.scale);
   if (auto configured = logic_.configure(scales, params_.stale_limit_cycles); !configured) {
@@ -604,6 +611,14 @@ UsbDiagnostics UsbDevice::diagnostics() const {
   d.lost_latch_cycle = lost_latch_cycle_;
   d.lost_latch_ns = lost_latch_ns_;
   d.shutdown_acknowledged = shutdown_acknowledged_;
+  const LatencyHistogram& trip = logic_.round_trip();
+  d.round_trips = trip.count();
+  d.round_trip_min_ns = trip.min_ns();
+  d.round_trip_p50_ns = trip.percentile_ns(0.5);
+  d.round_trip_p99_ns = trip.percentile_ns(0.99);
+  d.round_trip_p999_ns = trip.percentile_ns(0.999);
+  d.round_trip_max_ns = trip.max_ns();
+  d.round_trip_mean_ns = trip.mean_ns();
   return d;
 }
 

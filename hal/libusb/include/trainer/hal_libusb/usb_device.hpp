@@ -76,6 +76,7 @@ struct UsbDeviceParams {
   std::int64_t start_timeout_ns = 1'000'000'000;
   std::int64_t stop_timeout_ns = 100'000'000;
   std::int64_t event_poll_ns = 250'000;    // the event thread's libusb wait per round
+  std::int64_t loop_period_ns = 1'000'000; // the RT cycle's period (watchdog check)
   std::vector<UsbChannelParams> channels;  // channel order
 };
 
@@ -108,6 +109,15 @@ struct UsbDiagnostics {
   std::uint64_t lost_latch_cycle = 0;
   std::int64_t lost_latch_ns = 0;
   bool shutdown_acknowledged = false;   // deactivate(): the device acknowledged zero + disable
+  // Round trip OUT -> device -> IN (frame_logic.hpp), from the fixed histogram: percentiles
+  // are upper bin edges (10 us bins), min/max/mean exact.
+  std::uint64_t round_trips = 0;
+  std::int64_t round_trip_min_ns = 0;
+  std::int64_t round_trip_p50_ns = 0;
+  std::int64_t round_trip_p99_ns = 0;
+  std::int64_t round_trip_p999_ns = 0;
+  std::int64_t round_trip_max_ns = 0;
+  double round_trip_mean_ns = 0.0;
 };
 
 class UsbDevice final : public hal::Device,

@@ -10,6 +10,7 @@
 #include "trainer/core/expected.hpp"
 #include "trainer/hal/device.hpp"
 #include "trainer/hal_sim/sim_device.hpp"
+#include "trainer/hal_libusb/usb_device.hpp"
 #include "trainer/hal_socketcan/canopen_device.hpp"
 
 namespace trainer::app {
@@ -23,6 +24,10 @@ hal::sim::SimDeviceParams sim_params_from(const config::DeviceConfig& device,
 // The CiA 402 master's parameters: the device file's [canopen] table and drives (channel
 // order = instrument * 5 + joint, as on the simulated bench), the scene's loop period.
 hal::socketcan::CanopenDeviceParams canopen_params_from(const config::SceneConfig& scene);
+
+// The USB haptic interface's parameters: the device file's [usb] table and one channel per
+// joint (channel order = instrument * 5 + joint), the scene's loop period.
+hal::libusb::UsbDeviceParams usb_params_from(const config::SceneConfig& scene);
 
 // The hardware backend the scene's device file names, created but not configured (configure()
 // opens the bus and checks every node and the parameters). `clock` must outlive the device.
