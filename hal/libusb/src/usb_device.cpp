@@ -405,8 +405,14 @@ void UsbDevice::event_loop() noexcept {
     (void)libusb_handle_events_timeout_completed(context_, &timeout, nullptr);
     submit_pending_out();
   }
-  // Stop: cancel what is in flight and let the cancellations complete (bounded).
-  for (libusb_transfer* transfer : in_transfers_) (void)libusb_cancel_transfer(transfer);
+  drain_transfers();
+}
+
+void UsbDevice::drain_transfers() noexcept {
+  // Cancel what is in flight and let the cancellations complete (bounded: 2 s).
+  for (libusb_transfer* transfer : in_transfers_) {
+    if (transfer != nullptr) (void)libusb_cancel_transfer(transfer);
+  }
   if (out_busy_) (void)libusb_cancel_transfer(out_transfer_);
   for (int round = 0; round < 200 && (in_flight_ > 0 || out_busy_); ++round) {
     timeval timeout{0, 10'000};
@@ -415,9 +421,11 @@ void UsbDevice::event_loop() noexcept {
 }
 
 void UsbDevice::stop_events() noexcept {
+  stop_.store(true, std::memory_order_release);
   if (events_.joinable()) {
-    stop_.store(true, std::memory_order_release);
-    events_.join();
+    events_.join();  // the thread drains its transfers before it ends
+  } else if (in_flight_ > 0 || out_busy_) {
+    drain_transfers();  // activate() failed before the thread started
   }
   if (hotplug_registered_) {
     libusb_hotplug_deregister_callback(context_, hotplug_handle_);
@@ -524,6 +532,7 @@ core::Expected<void> UsbDevice::activate() {
   }
   if (logic_.latched()) return fail(std::string("fault while starting: ") + fault_report());
   logic_.arm_watchdog_check(true);
+  logic_.restart_cycle_count();
   state_ = hal::LifecycleState::active;
   return {};
 }

@@ -109,6 +109,12 @@ class UsbFrameLogic {
   // RT: per channel what was commanded and what the device says.
   void fill_status(std::span<hal::ActuatorStatus> out) const noexcept;
 
+  // activate(), after its setup exchanges: the RT cycles count from 0 (the setup exchanges
+  // went through on_cycle() too).
+  void restart_cycle_count() noexcept {
+    counters_.cycles = 0;
+    counters_.stale_run = 0;
+  }
   void latch(UsbFault fault) noexcept;
   bool latched() const noexcept { return counters_.faults != 0; }
   bool has_report() const noexcept { return has_report_; }

@@ -163,6 +163,7 @@ class UsbDevice final : public hal::Device,
   core::Expected<void> check_identity();
   void close_device() noexcept;
   void stop_events() noexcept;
+  void drain_transfers() noexcept;
   void latch_lost_if_reported() noexcept;
   // Setup path: publish one OUT report (all channels disabled, or a watchdog clear) and wait
   // until the device acknowledged it, up to timeout_ns.
