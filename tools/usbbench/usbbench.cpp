@@ -3,7 +3,9 @@
 // N cycles at a fixed period, each taking the newest IN report and publishing one OUT report
 // (zero current, disabled unless --enable), then the round trip OUT -> device -> IN
 // (percentiles of the fixed histogram), stale cycles, missed frames (device sequence gaps the
-// host never received), transfer errors and the heap allocations of the cycle loop.
+// host never received), transfer errors and the heap allocations of the cycle loop. The
+// device answers each OUT report with one IN report, so a cycle whose previous round trip took
+// longer than the period is stale; the bench counts those instead of latching (--stale-limit).
 //
 //   usbbench --device config/devices/usb_benchvm.toml --frames 100000 --period-us 1000
 //            --report out/usbbench.json
@@ -41,6 +43,7 @@ int main(int argc, char** argv) {
   std::int64_t period_us = 1000;
   std::int64_t slow_motion = 1;
   bool enable = false;
+  std::uint32_t stale_limit = 1000;
   std::string report_file;
   cli.add_option("--device", device_file, "device file with backend \"usb\"")->required();
   cli.add_option("--frames", frames, "cycles (one OUT and one IN report each)")
@@ -50,6 +53,11 @@ int main(int argc, char** argv) {
   cli.add_option("--slow-motion", slow_motion,
                  "slow the cycle clock down by this factor (as the trainer's --slow-motion)")
       ->check(CLI::Range(1, 1000));
+  cli.add_option("--stale-limit", stale_limit,
+                 "stale cycles in a row that latch device_stopped (the device file's "
+                 "usb.stale_limit_cycles is for the trainer; the bench counts stale cycles "
+                 "and keeps measuring)")
+      ->check(CLI::Range(1U, 1'000'000U));
   cli.add_flag("--enable", enable, "send enable (with zero current) instead of disabled");
   cli.add_option("--report", report_file, "write the figures as JSON here");
   CLI11_PARSE(cli, argc, argv);
@@ -68,7 +76,9 @@ int main(int argc, char** argv) {
   scene.device = std::move(*device_config);
   scene.loop.period_ns = period_us * 1000;
   trainer::core::SlowMotionClock clock(slow_motion);
-  UsbDevice device(clock, trainer::app::usb_params_from(scene));
+  trainer::hal::libusb::UsbDeviceParams params = trainer::app::usb_params_from(scene);
+  params.stale_limit_cycles = stale_limit;
+  UsbDevice device(clock, params);
   if (auto configured = device.configure(); !configured) {
     std::cerr << "usbbench: " << device_file << ": " << configured.error().message << "\n";
     return 1;
