@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Long libFuzzer runs of the CANopen protocol library (tests/fuzz, docs/canopen.md).
+# Long libFuzzer runs of the CANopen and USB protocol libraries (tests/fuzz, docs/canopen.md,
+# docs/usb-protocol.md).
 #   tools/fuzz.sh [TARGET|all] [RUNS]
-# TARGET: fuzz_can_frames, fuzz_sdo_client or all (default); RUNS: executions per target
+# TARGET: fuzz_can_frames, fuzz_sdo_client, fuzz_usb_in_report or all (default); RUNS: executions per target
 # (default 10,000,000). Configures and builds the `fuzz` preset (clang, ASan+UBSan; only the
 # fuzz targets), then runs each target from its seed corpus (tests/fuzz/corpus/TARGET, read
 # only) plus the corpus it grows in build/fuzz/tests/fuzz/corpus/TARGET, and prints
@@ -13,13 +14,13 @@ cd "$(dirname "$0")/.."
 
 target=${1:-all}
 runs=${2:-10000000}
-all_targets=(fuzz_can_frames fuzz_sdo_client)
+all_targets=(fuzz_can_frames fuzz_sdo_client fuzz_usb_in_report)
 if [ "$target" = all ]; then
   targets=("${all_targets[@]}")
 elif [[ " ${all_targets[*]} " == *" $target "* ]]; then
   targets=("$target")
 else
-  echo "usage: tools/fuzz.sh [fuzz_can_frames|fuzz_sdo_client|all] [RUNS]" >&2
+  echo "usage: tools/fuzz.sh [fuzz_can_frames|fuzz_sdo_client|fuzz_usb_in_report|all] [RUNS]" >&2
   exit 2
 fi
 if ! [[ "$runs" =~ ^[0-9]+$ ]] || [ "$runs" -lt 1 ]; then
@@ -55,7 +56,7 @@ for t in "${targets[@]}"; do
     echo "$t: ${executed:-?} executions in $seconds s (${rate:-?} exec/s), $coverage, corpus $corpus inputs: no crash"
   else
     echo "$t: FAILED (exit $rc) after $seconds s; input kept in $artifacts/; see $log" >&2
-    grep -E 'ERROR|SUMMARY|#[0-9]+ .* in .*(canopen|fuzz_)' "$log" | head -20 >&2 || true
+    grep -E 'ERROR|SUMMARY|#[0-9]+ .* in .*(canopen|usbproto|fuzz_)' "$log" | head -20 >&2 || true
     status=1
   fi
 done

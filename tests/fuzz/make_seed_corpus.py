@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Writes the seed corpus of the CANopen fuzz targets (tests/fuzz/corpus/<target>/): a few
-valid frames and exchanges in each target's input format (see the header comment of
-fuzz_can_frames.cpp and fuzz_sdo_client.cpp). Run from anywhere; rewrites the files."""
+"""Writes the seed corpus of the fuzz targets (tests/fuzz/corpus/<target>/): a few valid
+frames and exchanges in each target's input format (see the header comment of
+fuzz_can_frames.cpp and fuzz_sdo_client.cpp), and valid USB reports (docs/usb-protocol.md) for
+fuzz_usb_in_report. Run from anywhere; rewrites the files."""
 import pathlib
 import struct
 
@@ -63,6 +64,48 @@ def sdo_client():
     write(t, "pair_100", bytes([3, 100]) + b"".join(sdo_record([0], flags=0, spare=i) for i in range(40)))
 
 
+def crc8(data):
+    """CRC-8/SMBUS (poly 0x07, init 0): the last byte of every USB report."""
+    crc = 0
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+def usb_in_report(seq, out_seq, time_us, status, buttons, counts):
+    """IN report: 'I', version 1, channel count, seq, out seq, time, status, buttons, i24 counts."""
+    body = struct.pack("<BBBHHIHH", 0x49, 1, len(counts), seq, out_seq, time_us, status, buttons)
+    for c in counts:
+        body += (c & 0xFFFFFF).to_bytes(3, "little")
+    body += bytes(63 - len(body))
+    return body + bytes([crc8(body)])
+
+
+def usb_out_report(seq, flags, currents):
+    body = struct.pack("<BBBBH", 0x4F, 1, len(currents), flags, seq)
+    body += b"".join(struct.pack("<h", c) for c in currents)
+    body += bytes(63 - len(body))
+    return body + bytes([crc8(body)])
+
+
+def usb_identity(channels, firmware, watchdog_ms, frame_us, max_ma):
+    body = struct.pack("<BBBBHHIHB", 0x44, 1, channels, 0, firmware, watchdog_ms, frame_us, max_ma, 0)
+    return body + bytes([crc8(body)])
+
+
+def usb_in_report_corpus():
+    t = "fuzz_usb_in_report"
+    write(t, "in_10_channels", usb_in_report(7, 6, 7000, 0x0002, 0x0001,
+                                             [0, 1, -1, 4096, -4096, 2**23 - 1, -2**23, 12, 13, 14]))
+    write(t, "in_16_channels", usb_in_report(0xFFFF, 0xFFFE, 0xFFFFFFFF, 0x0021, 0xFFFF, list(range(-8, 8))))
+    write(t, "in_tripped_empty", usb_in_report(3, 2, 3000, 0x0001, 0, []))
+    write(t, "out_10_channels", usb_out_report(9, 0x01, [100, -100, 0, 32767, -32768, 1, 2, 3, 4, 5]))
+    write(t, "identity", usb_identity(10, 0x0100, 20, 1000, 3000))
+
+
 if __name__ == "__main__":
     can_frames()
     sdo_client()
+    usb_in_report_corpus()

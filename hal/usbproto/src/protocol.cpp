@@ -97,8 +97,8 @@ std::uint8_t crc8(std::span<const std::uint8_t> bytes) noexcept {
   for (const std::uint8_t byte : bytes) {
     crc = static_cast<std::uint8_t>(crc ^ byte);
     for (int bit = 0; bit < 8; ++bit) {
-      crc = (crc & 0x80U) != 0 ? static_cast<std::uint8_t>((crc << 1) ^ 0x07U)
-                               : static_cast<std::uint8_t>(crc << 1);
+      const unsigned shifted = static_cast<unsigned>(crc) << 1U;
+      crc = static_cast<std::uint8_t>((crc & 0x80U) != 0 ? (shifted ^ 0x07U) : shifted);
     }
   }
   return crc;

@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <span>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -420,6 +423,58 @@ TEST(UsbCounts, ExtendFollowsACountPastTheWireRange) {
   }
   EXPECT_EQ(extend_count(100, 100), 100);
   EXPECT_EQ(extend_count(kMaxWireCount, kMinWireCount), std::int64_t{kMaxWireCount} + 1);
+}
+
+// --- an independent encoder ----------------------------------------------------------------
+
+std::vector<std::uint8_t> read_seed(const char* name) {
+  const std::string path = std::string(TRAINER_SOURCE_DIR) + "/tests/fuzz/corpus/fuzz_usb_in_report/" + name;
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (file == nullptr) return {};
+  std::vector<std::uint8_t> bytes(128);
+  bytes.resize(std::fread(bytes.data(), 1, bytes.size(), file));
+  std::fclose(file);
+  return bytes;
+}
+
+// The fuzz seed corpus is written by tests/fuzz/make_seed_corpus.py, a Python encoder written
+// from docs/usb-protocol.md: the C++ decoder must read its reports field for field.
+TEST(UsbSeedCorpus, PythonEncodedReportsDecode) {
+  const std::vector<std::uint8_t> in_bytes = read_seed("in_10_channels");
+  ASSERT_EQ(in_bytes.size(), kReportSize);
+  InReport in;
+  ASSERT_EQ(decode(in_bytes, in), DecodeStatus::ok);
+  EXPECT_EQ(in.sequence, 7);
+  EXPECT_EQ(in.out_sequence_applied, 6);
+  EXPECT_EQ(in.device_time_us, 7000U);
+  EXPECT_EQ(in.status, kStatusEnabled);
+  EXPECT_EQ(in.buttons, 1);
+  ASSERT_EQ(in.channel_count, 10);
+  const std::int32_t counts[10] = {0, 1, -1, 4096, -4096, kMaxWireCount, kMinWireCount, 12, 13, 14};
+  for (std::size_t i = 0; i < 10; ++i) EXPECT_EQ(in.counts[i], counts[i]) << i;
+
+  const std::vector<std::uint8_t> out_bytes = read_seed("out_10_channels");
+  OutReport out;
+  ASSERT_EQ(decode(out_bytes, out), DecodeStatus::ok);
+  EXPECT_EQ(out.sequence, 9);
+  EXPECT_EQ(out.flags, kOutFlagEnable);
+  ASSERT_EQ(out.channel_count, 10);
+  EXPECT_EQ(out.current_ma[3], INT16_MAX);
+  EXPECT_EQ(out.current_ma[4], INT16_MIN);
+
+  const std::vector<std::uint8_t> id_bytes = read_seed("identity");
+  Identity identity;
+  ASSERT_EQ(decode(id_bytes, identity), DecodeStatus::ok);
+  EXPECT_EQ(identity.channel_count, 10);
+  EXPECT_EQ(identity.firmware_version, 0x0100);
+  EXPECT_EQ(identity.watchdog_ms, 20);
+  EXPECT_EQ(identity.frame_interval_us, 1000U);
+  EXPECT_EQ(identity.max_current_ma, 3000);
+
+  for (const char* name : {"in_16_channels", "in_tripped_empty"}) {
+    const std::vector<std::uint8_t> bytes = read_seed(name);
+    EXPECT_EQ(decode(bytes, in), DecodeStatus::ok) << name;
+  }
 }
 
 // --- no heap ---------------------------------------------------------------------------------
