@@ -57,6 +57,7 @@ void UsbFrameLogic::reset() noexcept {
   }
   has_report_ = false;
   watchdog_armed_ = false;
+  awaiting_answer_ = true;
   last_report_ = proto::InReport{};
   last_index_ = 0;
   out_sequence_ = 0;
@@ -85,7 +86,7 @@ void UsbFrameLogic::stale_cycle() noexcept {
 void UsbFrameLogic::on_cycle(const RawInReport* fresh) noexcept {
   ++counters_.cycles;
   if (fresh == nullptr) {
-    stale_cycle();
+    if (awaiting_answer_) stale_cycle();
     return;
   }
   proto::InReport report;
@@ -213,6 +214,7 @@ bool UsbFrameLogic::build_out(std::span<const hal::ActuatorCommand> commands, bo
   out.sequence = report.sequence;
   out.published_ns = now_ns;
   sent_[report.sequence % kSentRing] = Sent{report.sequence, now_ns, true};
+  awaiting_answer_ = true;
   ++counters_.out_published;
   return all_finite;
 }

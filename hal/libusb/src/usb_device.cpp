@@ -1,7 +1,10 @@
 #include "trainer/hal_libusb/usb_device.hpp"
 
 #include <libusb.h>
+#include <poll.h>
 #include <pthread.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -398,11 +401,44 @@ void UsbDevice::submit_pending_out() noexcept {
   out_submitted_.fetch_add(1, std::memory_order_relaxed);
 }
 
+void UsbDevice::wake_events() noexcept {
+  // One non-blocking write(2) on an eventfd: the RT cycle's only system call into the USB
+  // side (the HAL's own I/O); a full counter (never in practice) just means already signalled.
+  const std::uint64_t one = 1;
+  if (wake_fd_ >= 0) (void)!::write(wake_fd_, &one, sizeof one);
+}
+
 void UsbDevice::event_loop() noexcept {
-  const auto poll_us = static_cast<long>(std::max<std::int64_t>(params_.event_poll_ns / 1000, 1));
+  // The thread sleeps in poll() on libusb's descriptors (the device's usbfs fd, libusb's event
+  // and timer fds; fixed while the device is open) and on wake_fd_, which the RT cycle signals
+  // when it published an OUT report; libusb then handles what is ready without waiting. So a
+  // published OUT report is submitted at once and no thread spins. usb.event_poll_us bounds
+  // the sleep when nothing happens (the stop flag, libusb's own timeouts).
+  std::array<pollfd, 16> fds{};
+  std::size_t count = 0;
+  fds[count++] = pollfd{wake_fd_, POLLIN, 0};
+  if (const libusb_pollfd** usb_fds = libusb_get_pollfds(context_)) {
+    for (const libusb_pollfd** fd = usb_fds; *fd != nullptr && count < fds.size(); ++fd) {
+      fds[count++] = pollfd{(*fd)->fd, (*fd)->events, 0};
+    }
+    libusb_free_pollfds(usb_fds);
+  }
+  const auto fallback_ms =
+      static_cast<int>(std::max<std::int64_t>(params_.event_poll_ns / 1'000'000, 1));
   while (!stop_.load(std::memory_order_acquire)) {
-    timeval timeout{0, poll_us};
-    (void)libusb_handle_events_timeout_completed(context_, &timeout, nullptr);
+    int timeout_ms = fallback_ms;
+    timeval next{};
+    if (libusb_get_next_timeout(context_, &next) == 1) {
+      const auto next_ms = static_cast<int>(next.tv_sec * 1000 + (next.tv_usec + 999) / 1000);
+      timeout_ms = std::min(timeout_ms, next_ms);
+    }
+    (void)::poll(fds.data(), count, timeout_ms);
+    if ((fds[0].revents & POLLIN) != 0) {
+      std::uint64_t signals = 0;
+      (void)::read(wake_fd_, &signals, sizeof signals);
+    }
+    timeval zero{0, 0};
+    (void)libusb_handle_events_timeout_completed(context_, &zero, nullptr);
     submit_pending_out();
   }
   drain_transfers();
@@ -422,6 +458,7 @@ void UsbDevice::drain_transfers() noexcept {
 
 void UsbDevice::stop_events() noexcept {
   stop_.store(true, std::memory_order_release);
+  wake_events();
   if (events_.joinable()) {
     events_.join();  // the thread drains its transfers before it ends
   } else if (in_flight_ > 0 || out_busy_) {
@@ -439,6 +476,8 @@ void UsbDevice::stop_events() noexcept {
   out_transfer_ = nullptr;
   in_flight_ = 0;
   out_busy_ = false;
+  if (wake_fd_ >= 0) ::close(wake_fd_);
+  wake_fd_ = -1;
 }
 
 // ------------------------------------------------------------------------------ activate
@@ -448,6 +487,7 @@ bool UsbDevice::exchange_setup_report(bool clear_watchdog, std::int64_t timeout_
   (void)logic_.build_out(off, clear_watchdog, wall_.now_ns(), out_reports_.back());
   const std::uint16_t sequence = logic_.last_out_sequence();
   if (out_reports_.publish()) ++out_superseded_;
+  wake_events();
   const std::int64_t deadline = wall_.now_ns() + timeout_ns;
   while (wall_.now_ns() < deadline && !lost_.load(std::memory_order_acquire)) {
     if (in_reports_.take()) {
@@ -508,6 +548,8 @@ core::Expected<void> UsbDevice::activate() {
     }
     ++in_flight_;
   }
+  wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+  if (wake_fd_ < 0) return fail("eventfd failed");
   events_ = std::thread([this] { event_loop(); });
   pthread_setname_np(events_.native_handle(), "usb-events");
 
@@ -578,6 +620,7 @@ hal::ReturnCode UsbDevice::write_actuators(std::span<const hal::ActuatorCommand>
   latch_lost_if_reported();
   const bool finite = logic_.build_out(commands, false, wall_.now_ns(), out_reports_.back());
   if (out_reports_.publish()) ++out_superseded_;
+  wake_events();
   if (logic_.latched()) return hal::ReturnCode::deactivate;
   return finite ? hal::ReturnCode::ok : hal::ReturnCode::error;
 }

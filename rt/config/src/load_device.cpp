@@ -420,7 +420,7 @@ UsbConfig read_usb(TableReader& table, ErrorSink& errors) {
       read_ms(table, "start_timeout_ms", 2000, kUsbStartTimeoutRangeMs, "milliseconds");
   usb.stop_timeout_ns =
       read_ms(table, "stop_timeout_ms", 100, kUsbStopTimeoutRangeMs, "milliseconds");
-  usb.event_poll_ns = table.optional_int("event_poll_us", 250, kUsbEventPollRangeUs,
+  usb.event_poll_ns = table.optional_int("event_poll_us", 10000, kUsbEventPollRangeUs,
                                          "microseconds") *
                       kNanosecondsPerMicrosecond;
   table.finish();

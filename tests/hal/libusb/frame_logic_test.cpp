@@ -128,6 +128,20 @@ TEST_F(FrameLogicTest, NoReportIsStaleAndTwoInARowLatchDeviceStopped) {
   EXPECT_FALSE(samples[0].valid);
 }
 
+TEST_F(FrameLogicTest, TheFirstCycleAfterActivateExpectsNothing) {
+  const RawInReport setup = in(1);  // activate's exchange
+  logic_.on_cycle(&setup);
+  logic_.restart_cycle_count();
+  logic_.on_cycle(nullptr);  // cycle 1: no OUT report since the restart, nothing to answer
+  EXPECT_EQ(logic_.counters().stale_frames, 0U);
+  RawOutReport out;
+  const std::array<hal::ActuatorCommand, 3> commands{};
+  ASSERT_TRUE(logic_.build_out(commands, false, 0, out));
+  logic_.on_cycle(nullptr);  // cycle 2: the answer to cycle 1's OUT report is missing
+  EXPECT_EQ(logic_.counters().stale_frames, 1U);
+  EXPECT_EQ(logic_.counters().cycles, 2U);
+}
+
 TEST_F(FrameLogicTest, SameSequenceAgainIsStale) {
   const RawInReport first = in(7);
   logic_.on_cycle(&first);

@@ -554,7 +554,7 @@ TEST(UsbDeviceFile, LoadsTheUsbTableAndTheSimMechanism) {
   EXPECT_EQ(usb.control_timeout_ns, 100'000'000);
   EXPECT_EQ(usb.start_timeout_ns, 2'000'000'000);
   EXPECT_EQ(usb.stop_timeout_ns, 100'000'000);
-  EXPECT_EQ(usb.event_poll_ns, 250'000);
+  EXPECT_EQ(usb.event_poll_ns, 10'000'000);
   // The mechanism is sim.toml's, joint for joint.
   const auto sim = load_device(repo_path("config/devices/sim.toml"));
   ASSERT_TRUE(sim);
@@ -619,7 +619,7 @@ const UsbErrorCase kUsbErrorCases[] = {
      "usb.control_timeout_ms = 0 is out of range: expected 1 to 10000 (milliseconds)"},
     {"start_timeout_too_long", "start_timeout_ms = 2000", "start_timeout_ms = 60001",
      "usb.start_timeout_ms = 60001 is out of range: expected 1 to 60000"},
-    {"event_poll_too_short", "event_poll_us = 250", "event_poll_us = 10",
+    {"event_poll_too_short", "event_poll_us = 10000", "event_poll_us = 10",
      "usb.event_poll_us = 10 is out of range: expected 50 to 100000 (microseconds)"},
     {"firmware_too_large", "min_firmware_version = 0x0100", "min_firmware_version = 0x10000",
      "usb.min_firmware_version = 65536 is out of range: expected 0 to 65535"},

@@ -7,7 +7,9 @@
 // Definitions (docs/usb.md):
 //  - stale cycle: a cycle in which no IN report newer (by sequence number) than the last one
 //    used arrived, or the one that arrived did not decode; `stale_limit` stale cycles in a row
-//    latch UsbFault::device_stopped (the device or the bus stopped delivering).
+//    latch UsbFault::device_stopped (the device or the bus stopped delivering). The device
+//    answers OUT reports, so a cycle before which no OUT report was published since the
+//    restart (the first RT cycle after activate) expects nothing and is not stale.
 //  - missed frame: an IN report the device numbered but the host never received (the gap in
 //    the device's sequence minus the reports the event thread did receive). Reports received
 //    but superseded before the RT cycle took them are counted apart (in_superseded): the
@@ -109,11 +111,14 @@ class UsbFrameLogic {
   // RT: per channel what was commanded and what the device says.
   void fill_status(std::span<hal::ActuatorStatus> out) const noexcept;
 
-  // activate(), after its setup exchanges: the RT cycles count from 0 (the setup exchanges
-  // went through on_cycle() too).
+  // activate(), after its setup exchanges: the RT cycles count from 0 and the round-trip
+  // histogram holds the RT cycles' exchanges only (the setup exchanges went through
+  // on_cycle() too; the first one includes the device starting its plant).
   void restart_cycle_count() noexcept {
     counters_.cycles = 0;
     counters_.stale_run = 0;
+    round_trip_.clear();
+    awaiting_answer_ = false;
   }
   void latch(UsbFault fault) noexcept;
   bool latched() const noexcept { return counters_.faults != 0; }
@@ -160,6 +165,7 @@ class UsbFrameLogic {
   std::uint32_t stale_limit_ = 2;
   bool has_report_ = false;
   bool watchdog_armed_ = false;
+  bool awaiting_answer_ = true;  // an OUT report was published since restart_cycle_count()
   proto::InReport last_report_{};
   std::uint64_t last_index_ = 0;
   std::uint16_t out_sequence_ = 0;

@@ -18,7 +18,9 @@
 //
 // Threads: the RT thread (read/write) and the libusb event thread share only two LatestValue
 // triple buffers (newest IN report, next OUT report) and a few atomics; the RT thread never
-// calls libusb, never waits, never allocates. The event thread resubmits each completed IN
+// calls libusb, never waits, never allocates; its one system call is a non-blocking write to an
+// eventfd that wakes the event thread when an OUT report was published. The event thread
+// sleeps in poll() on libusb's descriptors and that eventfd, resubmits each completed IN
 // transfer at once, and sends a new OUT report whenever the RT cycle published one and the OUT
 // transfer is idle. An OUT report is never repeated: if the loop stops, the device's watchdog
 // must see the silence and drop the currents.
@@ -75,7 +77,7 @@ struct UsbDeviceParams {
   std::int64_t control_timeout_ns = 100'000'000;
   std::int64_t start_timeout_ns = 1'000'000'000;
   std::int64_t stop_timeout_ns = 100'000'000;
-  std::int64_t event_poll_ns = 250'000;    // the event thread's libusb wait per round
+  std::int64_t event_poll_ns = 10'000'000; // the event thread's longest sleep without events
   std::int64_t loop_period_ns = 1'000'000; // the RT cycle's period (watchdog check)
   std::vector<UsbChannelParams> channels;  // channel order
 };
@@ -159,6 +161,7 @@ class UsbDevice final : public hal::Device,
   void event_loop() noexcept;
   void report_lost(const char* source) noexcept;
   void submit_pending_out() noexcept;
+  void wake_events() noexcept;
   core::Expected<void> open_device();
   core::Expected<void> check_identity();
   void close_device() noexcept;
@@ -188,6 +191,7 @@ class UsbDevice final : public hal::Device,
   // Shared between the RT and the event thread.
   LatestValue<RawInReport> in_reports_;    // producer: event thread
   LatestValue<RawOutReport> out_reports_;  // producer: RT thread
+  int wake_fd_ = -1;                       // eventfd: RT cycle -> event thread, "OUT published"
   std::atomic<bool> stop_{false};
   std::atomic<bool> lost_{false};
   std::atomic<std::uint64_t> rt_cycles_{0};

@@ -128,7 +128,7 @@ struct UsbConfig {
   std::int64_t control_timeout_ns = 0;     // control requests and the OUT transfer
   std::int64_t start_timeout_ns = 0;       // activate: first acknowledged exchange
   std::int64_t stop_timeout_ns = 0;        // deactivate: zero + disable acknowledged
-  std::int64_t event_poll_ns = 0;          // libusb event thread's wait per round
+  std::int64_t event_poll_ns = 0;          // event thread's longest sleep without events
 };
 
 struct DeviceConfig {
