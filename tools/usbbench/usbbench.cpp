@@ -142,6 +142,7 @@ int main(int argc, char** argv) {
       {"in_reports_used", f.in_reports_used},
       {"in_superseded", f.in_superseded},
       {"stale_frames", f.stale_frames},
+      {"not_due_cycles", f.not_due_cycles},
       {"stale_run_max", f.stale_run_max},
       {"missed_frames", f.missed_frames},
       {"missed_rate", missed_rate},

@@ -76,17 +76,21 @@ void UsbFrameLogic::latch(UsbFault fault) noexcept {
   counters_.faults |= static_cast<std::uint32_t>(fault);
 }
 
-void UsbFrameLogic::stale_cycle() noexcept {
+void UsbFrameLogic::stale_cycle(bool answer_due) noexcept {
+  if (!answer_due) {
+    ++counters_.not_due_cycles;
+    return;
+  }
   ++counters_.stale_frames;
   ++counters_.stale_run;
   counters_.stale_run_max = std::max(counters_.stale_run_max, counters_.stale_run);
   if (counters_.stale_run >= stale_limit_) latch(UsbFault::device_stopped);
 }
 
-void UsbFrameLogic::on_cycle(const RawInReport* fresh) noexcept {
+void UsbFrameLogic::on_cycle(const RawInReport* fresh, bool answer_due) noexcept {
   ++counters_.cycles;
   if (fresh == nullptr) {
-    if (awaiting_answer_) stale_cycle();
+    if (awaiting_answer_) stale_cycle(answer_due);
     return;
   }
   proto::InReport report;
@@ -95,19 +99,19 @@ void UsbFrameLogic::on_cycle(const RawInReport* fresh) noexcept {
   if (status != proto::DecodeStatus::ok) {
     ++counters_.bad_reports;
     counters_.last_bad_status = status;
-    stale_cycle();
+    stale_cycle(true);
     return;
   }
   if (report.channel_count != channel_count_) {
     latch(UsbFault::channel_mismatch);
-    stale_cycle();
+    stale_cycle(true);
     return;
   }
   // The same report again (or an older one): nothing new from the device this cycle.
   if (has_report_) {
     const std::uint16_t ahead = proto::sequence_distance(report.sequence, last_report_.sequence);
     if (ahead == 0 || ahead >= 0x8000U) {
-      stale_cycle();
+      stale_cycle(answer_due);
       return;
     }
   }

@@ -512,6 +512,7 @@ core::Expected<void> UsbDevice::activate() {
   rt_cycles_.store(0, std::memory_order_relaxed);
   in_index_ = 0;
   out_superseded_ = 0;
+  last_out_cycle_ns_ = 0;
   lost_latch_cycle_ = 0;
   lost_latch_ns_ = 0;
   shutdown_acknowledged_ = false;
@@ -606,7 +607,8 @@ hal::ReturnCode UsbDevice::read_encoders(std::span<hal::EncoderSample> out) noex
     return hal::ReturnCode::error;
   }
   const RawInReport* fresh = in_reports_.take() ? &in_reports_.front() : nullptr;
-  logic_.on_cycle(fresh);
+  const bool answer_due = clock_.now_ns() - last_out_cycle_ns_ >= params_.loop_period_ns / 2;
+  logic_.on_cycle(fresh, answer_due);
   rt_cycles_.store(logic_.counters().cycles, std::memory_order_relaxed);
   latch_lost_if_reported();
   logic_.fill_encoders(out);
@@ -621,6 +623,7 @@ hal::ReturnCode UsbDevice::write_actuators(std::span<const hal::ActuatorCommand>
   const bool finite = logic_.build_out(commands, false, wall_.now_ns(), out_reports_.back());
   if (out_reports_.publish()) ++out_superseded_;
   wake_events();
+  last_out_cycle_ns_ = clock_.now_ns();
   if (logic_.latched()) return hal::ReturnCode::deactivate;
   return finite ? hal::ReturnCode::ok : hal::ReturnCode::error;
 }

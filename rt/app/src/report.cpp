@@ -202,6 +202,7 @@ nlohmann::json usb_json(const RunResult& r) {
           {"cycles", f.cycles},
           {"in_reports_used", f.in_reports_used},
           {"stale_frames", f.stale_frames},
+          {"not_due_cycles", f.not_due_cycles},
           {"stale_run_max", f.stale_run_max},
           {"missed_frames", f.missed_frames},
           {"in_superseded", f.in_superseded},

@@ -142,6 +142,21 @@ TEST_F(FrameLogicTest, TheFirstCycleAfterActivateExpectsNothing) {
   EXPECT_EQ(logic_.counters().cycles, 2U);
 }
 
+TEST_F(FrameLogicTest, AnAnswerNotDueYetIsNotStale) {
+  const RawInReport first = in(1);
+  logic_.on_cycle(&first);
+  logic_.on_cycle(nullptr, false);  // back-to-back after an overrun: not due
+  logic_.on_cycle(nullptr, false);
+  EXPECT_EQ(logic_.counters().stale_frames, 0U);
+  EXPECT_EQ(logic_.counters().not_due_cycles, 2U);
+  logic_.on_cycle(nullptr, true);
+  logic_.on_cycle(nullptr, false);  // neither grows nor resets the run
+  EXPECT_FALSE(logic_.latched());
+  logic_.on_cycle(nullptr, true);
+  EXPECT_TRUE(logic_.latched());
+  EXPECT_EQ(logic_.counters().stale_frames, 2U);
+}
+
 TEST_F(FrameLogicTest, SameSequenceAgainIsStale) {
   const RawInReport first = in(7);
   logic_.on_cycle(&first);

@@ -9,7 +9,10 @@
 //    used arrived, or the one that arrived did not decode; `stale_limit` stale cycles in a row
 //    latch UsbFault::device_stopped (the device or the bus stopped delivering). The device
 //    answers OUT reports, so a cycle before which no OUT report was published since the
-//    restart (the first RT cycle after activate) expects nothing and is not stale.
+//    restart (the first RT cycle after activate) expects nothing and is not stale; nor is a
+//    cycle that comes less than half a period after the OUT report it waits for was
+//    published (back-to-back cycles after an overrun: the answer is not due yet; counted as
+//    not_due_cycles, the run of stale cycles neither grows nor resets).
 //  - missed frame: an IN report the device numbered but the host never received (the gap in
 //    the device's sequence minus the reports the event thread did receive). Reports received
 //    but superseded before the RT cycle took them are counted apart (in_superseded): the
@@ -67,6 +70,7 @@ struct UsbFrameCounters {
   std::uint64_t cycles = 0;             // RT read cycles
   std::uint64_t in_reports_used = 0;    // fresh, decoded IN reports taken by the RT cycle
   std::uint64_t stale_frames = 0;       // stale cycles (see above)
+  std::uint64_t not_due_cycles = 0;     // no new IN report, but none was due yet (see above)
   std::uint64_t missed_frames = 0;      // device sequence gaps not received (see above)
   std::uint64_t in_superseded = 0;      // received, overwritten before a cycle took them
   std::uint64_t bad_reports = 0;        // IN reports that did not decode
@@ -98,8 +102,9 @@ class UsbFrameLogic {
   std::size_t channel_count() const noexcept { return channel_count_; }
 
   // RT, once per cycle before anything else: `fresh` is the newest IN report if one arrived
-  // since the previous cycle, else nullptr.
-  void on_cycle(const RawInReport* fresh) noexcept;
+  // since the previous cycle, else nullptr. `answer_due`: at least half a period passed since
+  // the last OUT report was published (the caller's cycle clock).
+  void on_cycle(const RawInReport* fresh, bool answer_due = true) noexcept;
   // RT: positions of the newest report (valid = a report was ever received and no fault).
   void fill_encoders(std::span<hal::EncoderSample> out) const noexcept;
   // RT: the next OUT report into `out` (sequence, currents clipped to the limits, enable when
@@ -158,7 +163,7 @@ class UsbFrameLogic {
   };
 
   void use_report(const proto::InReport& report, const RawInReport& raw) noexcept;
-  void stale_cycle() noexcept;
+  void stale_cycle(bool answer_due) noexcept;
 
   std::array<Channel, proto::kMaxChannels> channels_{};
   std::size_t channel_count_ = 0;

@@ -212,6 +212,7 @@ class UsbDevice final : public hal::Device,
   // RT thread only (and setup while it is not running).
   UsbFrameLogic logic_;
   std::uint64_t out_superseded_ = 0;
+  std::int64_t last_out_cycle_ns_ = 0;  // clock_ time of the last OUT report published
   std::uint64_t lost_latch_cycle_ = 0;
   std::int64_t lost_latch_ns_ = 0;
   bool shutdown_acknowledged_ = false;
