@@ -549,8 +549,8 @@ TEST(UsbDeviceFile, LoadsTheUsbTableAndTheSimMechanism) {
   EXPECT_EQ(usb.protocol_version, 1);
   ASSERT_TRUE(usb.min_firmware_version.has_value());
   EXPECT_EQ(*usb.min_firmware_version, 0x0100);
-  EXPECT_EQ(usb.watchdog_ms, 20);
-  EXPECT_EQ(usb.stale_limit_cycles, 2U);
+  EXPECT_EQ(usb.watchdog_ms, 100);
+  EXPECT_EQ(usb.stale_limit_cycles, 5U);
   EXPECT_EQ(usb.control_timeout_ns, 100'000'000);
   EXPECT_EQ(usb.start_timeout_ns, 2'000'000'000);
   EXPECT_EQ(usb.stop_timeout_ns, 100'000'000);
@@ -610,10 +610,10 @@ const UsbErrorCase kUsbErrorCases[] = {
     {"protocol_version_unknown", "protocol_version = 1 ", "protocol_version = 2 ",
      "usb.protocol_version = 2 is out of range: expected 1 to 1 (the protocol version this "
      "build speaks)"},
-    {"watchdog_too_short", "watchdog_ms = 20", "watchdog_ms = 1",
+    {"watchdog_too_short", "watchdog_ms = 100", "watchdog_ms = 1",
      "usb.watchdog_ms = 1 is out of range: expected 2 to 1000 (milliseconds, the device's "
      "watchdog)"},
-    {"stale_limit_zero", "stale_limit_cycles = 2", "stale_limit_cycles = 0",
+    {"stale_limit_zero", "stale_limit_cycles = 5", "stale_limit_cycles = 0",
      "usb.stale_limit_cycles = 0 is out of range: expected 1 to 1000"},
     {"control_timeout_zero", "control_timeout_ms = 100", "control_timeout_ms = 0",
      "usb.control_timeout_ms = 0 is out of range: expected 1 to 10000 (milliseconds)"},
@@ -623,7 +623,7 @@ const UsbErrorCase kUsbErrorCases[] = {
      "usb.event_poll_us = 10 is out of range: expected 50 to 100000 (microseconds)"},
     {"firmware_too_large", "min_firmware_version = 0x0100", "min_firmware_version = 0x10000",
      "usb.min_firmware_version = 65536 is out of range: expected 0 to 65535"},
-    {"unknown_usb_key", "watchdog_ms = 20", "watchdog = 20",
+    {"unknown_usb_key", "watchdog_ms = 100", "watchdog = 100",
      "unknown key 'usb.watchdog'"},
 };
 
