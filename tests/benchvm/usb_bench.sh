@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs inside the bench VM: usbgadget (the emulated USB haptic interface) and usbbench (the
 # trainer's libusb backend in a bare cycle loop) as two processes; usbbench measures the round
-# trip OUT -> device -> IN and the missed frames over FRAMES cycles (docs/usb.md).
+# trip OUT -> device -> IN and the missed frames over FRAMES cycles of PERIOD_US
+# (docs/usb-host.md).
 #   usb_bench.sh BIN_DIR SCENE DEVICE FRAMES PERIOD_US SLOW_MOTION
 # Exit status: usbbench's (0 done, 1 setup failed, 3 a fault latched), 10 when the device did
 # not enumerate.
@@ -14,7 +15,11 @@ if ! tools/benchvm/usb-gadget-modules >"$out/modules.txt" 2>&1; then
   cat "$out/modules.txt"
   exit 10
 fi
-chrt -f 50 "$bin/usbgadget" --scene "$scene" --device "$device" --period-us "$period_us" \
+# The gadget's plant advances one sub-step (100 us) per exchange: under TCG the plant's
+# integration, not the link, limited the exchanges to ~3,600 plant sub-steps a second (~360
+# exchanges/s at 1 ms of plant time per exchange, ~90/s at 4 ms); the link's figures need a
+# device that answers at once, as a real interface's firmware does.
+chrt -f 50 "$bin/usbgadget" --scene "$scene" --device "$device" --period-us 100 \
   --slow-motion "$slow" >"$out/usbgadget.txt" 2>&1 &
 gadget=$!
 enumerated=0

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The USB link's figures in short (CI): usbbench against usbgadget in the bench VM over
-# FRAMES cycles (default 3000; the 10^5-frame run of docs/usb.md is the same with --frames
-# 100000, run by hand). Checks: every cycle ran without a fault, no IN report refused, no
-# transfer error, round trips measured for most OUT reports, no heap in the cycle loop.
+# FRAMES cycles of 1 ms in real time (default 3000; the 10^5-frame run of docs/usb-host.md is
+# the same with 100000, run by hand), the gadget's plant one sub-step per exchange
+# (usb_bench.sh). Checks: every cycle ran without a fault, no IN report refused, no transfer
+# error, round trips measured for at least a tenth of the cycles (under TCG the bus takes a
+# newer OUT report in place of one still waiting: out_superseded), no heap in the cycle loop.
 #   usb_bench_test.sh SOURCE_DIR BIN_DIR [FRAMES] [OUT_DIR]
 # Exit 77 (skip) when the bench VM cannot run here.
 set -euo pipefail
@@ -34,7 +36,7 @@ check("cycles", r["cycles"], r["cycles"] == frames)
 check("faults", r["faults"], r["faults"] == "")
 check("bad reports", r["bad_reports"], r["bad_reports"] == 0)
 check("transfer errors", r["transfer_errors"], r["transfer_errors"] == 0)
-check("round trips", r["round_trip_us"]["count"], r["round_trip_us"]["count"] >= frames // 2)
+check("round trips", r["round_trip_us"]["count"], r["round_trip_us"]["count"] >= frames // 10)
 check("heap in loop", r["heap_allocations_in_loop"],
       r["allocation_hooks_installed"] and r["heap_allocations_in_loop"] == 0)
 for key in ("missed_frames", "missed_rate", "stale_frames", "late_cycles"):

@@ -4,7 +4,7 @@
 // currents and the OUT report. UsbDevice owns one and feeds it the reports its libusb event
 // thread exchanged; tests drive it with hand-made reports and no device at all.
 //
-// Definitions (docs/usb.md):
+// Definitions (docs/usb-host.md):
 //  - stale cycle: a cycle in which no IN report newer (by sequence number) than the last one
 //    used arrived, or the one that arrived did not decode; `stale_limit` stale cycles in a row
 //    latch UsbFault::device_stopped (the device or the bus stopped delivering). The device

@@ -114,7 +114,7 @@ struct CanopenConfig {
   int digital_outputs_node = -1;           // node whose 0x60FE:01 bits 16..31 are the outputs
 };
 
-// The USB haptic interface (backend "usb", docs/usb.md, protocol docs/usb-protocol.md): which
+// The USB haptic interface (backend "usb", docs/usb-host.md, protocol docs/usb-protocol.md): which
 // device on the bus, what it must report, and the host's timing. One channel per joint in
 // instrument order (instrument[0].pitch, .yaw, .insertion, .roll, .grip, instrument[1].pitch...).
 struct UsbConfig {
