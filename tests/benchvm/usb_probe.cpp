@@ -10,12 +10,16 @@
 //     decode, echo the OUT sequence (out_sequence_applied), count its own sequence up by one,
 //     advance device time one frame, report enabled; channel 0 gets --current-ma for the second
 //     half and its encoder count must move by at least --min-move counts against the first;
+//  4b. optionally (--paced-frames N --period-us P) the host's RT pattern: one OUT per period from
+//     a clock_nanosleep loop, IN transfers kept in flight, missed frames (no IN since the last
+//     tick), stale reports and round trips counted over N frames;
 //  5. the watchdog: SET_WATCHDOG --trip-watchdog-ms, one more enabled report, then no OUT: the
 //     next IN report must say watchdog_tripped no earlier than the watchdog; enabled reports are
 //     then answered but not applied; clear_watchdog clears it and enable applies again.
 // Prints the round-trip figures (min, median, p99, max, rate) and writes them as JSON
 // (--json FILE). Exit status 0 all checks passed, 1 a check failed, 2 usage.
 #include <libusb-1.0/libusb.h>
+#include <time.h>
 
 #include <algorithm>
 #include <array>
@@ -24,6 +28,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -43,6 +48,8 @@ struct Options {
   std::string speed = "high";
   std::string json;
   int timeout_ms = 5000;
+  int paced_frames = 0;    // 0: no paced run
+  int period_us = 1000;    // paced run: one OUT report per period
 };
 
 int failures = 0;
@@ -155,6 +162,7 @@ class Probe {
     return 0;
   }
   std::uint16_t out_sequence() const { return out_sequence_; }
+  std::uint16_t skip_sequence() { return ++out_sequence_; }
 
  private:
   libusb_device_handle* handle_;
@@ -162,6 +170,204 @@ class Probe {
   Options options_;
   std::uint16_t out_sequence_ = 0;
 };
+
+// --- the paced run: the host's RT pattern with transfers kept in flight ------------------------
+// One OUT report per period from a clock_nanosleep(TIMER_ABSTIME) loop, two IN transfers always
+// submitted (resubmitted from their callback), libusb events handled until the next tick. At
+// each tick, before sending: no IN report arrived since the previous tick = a missed frame; the
+// newest IN's out_sequence_applied more than 2 behind the last OUT sent = stale. The round trip
+// of OUT s is the time from its submission to the first IN report with out_sequence_applied s.
+struct PacedRun {
+  libusb_context* context = nullptr;
+  libusb_device_handle* handle = nullptr;
+  unsigned char in_endpoint = 0;
+  unsigned char out_endpoint = 0;
+  std::array<std::int64_t, 65536> sent_ns{};
+  std::uint16_t last_sent = 0;
+  bool in_since_tick = false;
+  up::InReport newest;
+  bool have_newest = false;
+  std::uint16_t last_applied_seen = 0;
+  std::vector<double> round_trip_us;
+  int in_reports = 0;
+  int in_decode_errors = 0;
+  int in_transfer_errors = 0;
+  int out_transfer_errors = 0;
+  int out_in_flight = 0;
+  int out_skipped_busy = 0;
+  bool stopping = false;
+  int in_active = 0;
+  std::array<int, 8> out_error_status{};  // index = libusb_transfer_status
+  std::array<int, 8> in_error_status{};
+};
+
+std::int64_t now_ns_monotonic() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+}
+
+const char* transfer_status_name(int status) {
+  switch (status) {
+    case LIBUSB_TRANSFER_COMPLETED: return "COMPLETED";
+    case LIBUSB_TRANSFER_ERROR: return "ERROR";
+    case LIBUSB_TRANSFER_TIMED_OUT: return "TIMED_OUT";
+    case LIBUSB_TRANSFER_CANCELLED: return "CANCELLED";
+    case LIBUSB_TRANSFER_STALL: return "STALL";
+    case LIBUSB_TRANSFER_NO_DEVICE: return "NO_DEVICE";
+    case LIBUSB_TRANSFER_OVERFLOW: return "OVERFLOW";
+    default: return "?";
+  }
+}
+
+void LIBUSB_CALL paced_in_done(libusb_transfer* transfer) {
+  auto& run = *static_cast<PacedRun*>(transfer->user_data);
+  if (transfer->status == LIBUSB_TRANSFER_COMPLETED) {
+    up::InReport in;
+    if (up::decode(std::span<const std::uint8_t>(transfer->buffer, static_cast<std::size_t>(transfer->actual_length)), in) ==
+        up::DecodeStatus::ok) {
+      ++run.in_reports;
+      run.in_since_tick = true;
+      if (!run.have_newest || in.out_sequence_applied != run.last_applied_seen) {
+        run.round_trip_us.push_back(static_cast<double>(now_ns_monotonic() - run.sent_ns[in.out_sequence_applied]) * 1e-3);
+        run.last_applied_seen = in.out_sequence_applied;
+      }
+      run.newest = in;
+      run.have_newest = true;
+    } else {
+      ++run.in_decode_errors;
+    }
+  } else if (transfer->status != LIBUSB_TRANSFER_CANCELLED && transfer->status != LIBUSB_TRANSFER_TIMED_OUT) {
+    ++run.in_transfer_errors;
+    ++run.in_error_status[static_cast<std::size_t>(transfer->status) & 7U];
+  }
+  if (run.stopping || libusb_submit_transfer(transfer) != 0) --run.in_active;
+}
+
+// user_data of an OUT transfer: the run and the slot's busy flag.
+struct OutSlot {
+  PacedRun* run = nullptr;
+  bool busy = false;
+};
+
+void LIBUSB_CALL paced_out_done(libusb_transfer* transfer) {
+  auto& slot = *static_cast<OutSlot*>(transfer->user_data);
+  slot.busy = false;
+  auto& run = *slot.run;
+  if (transfer->status != LIBUSB_TRANSFER_COMPLETED) {
+    ++run.out_transfer_errors;
+    ++run.out_error_status[static_cast<std::size_t>(transfer->status) & 7U];
+  }
+  --run.out_in_flight;
+}
+
+struct PacedResult {
+  int frames = 0;
+  int missed = 0;
+  int stale = 0;
+  double seconds = 0.0;
+  std::vector<double> round_trip_us;
+  int errors = 0;
+  int skipped = 0;
+};
+
+PacedResult paced_run(libusb_context* context, libusb_device_handle* handle, const Endpoints& ep,
+                      std::uint8_t channels, std::uint16_t first_sequence, const Options& options) {
+  auto run = std::make_unique<PacedRun>();
+  run->context = context;
+  run->handle = handle;
+  run->last_sent = first_sequence;
+  run->round_trip_us.reserve(static_cast<std::size_t>(options.paced_frames));
+  std::array<std::array<unsigned char, up::kReportSize>, 2> in_buffers{};
+  std::array<libusb_transfer*, 2> in_transfers{};
+  for (std::size_t i = 0; i < in_transfers.size(); ++i) {
+    in_transfers[i] = libusb_alloc_transfer(0);
+    libusb_fill_interrupt_transfer(in_transfers[i], handle, ep.in, in_buffers[i].data(),
+                                   static_cast<int>(up::kReportSize), paced_in_done, run.get(), 0);
+    if (libusb_submit_transfer(in_transfers[i]) == 0) ++run->in_active;
+  }
+  constexpr int kOutSlots = 4;
+  std::array<std::array<unsigned char, up::kReportSize>, kOutSlots> out_buffers{};
+  std::array<libusb_transfer*, kOutSlots> out_transfers{};
+  std::array<OutSlot, kOutSlots> out_slots{};
+  for (auto& transfer : out_transfers) transfer = libusb_alloc_transfer(0);
+  for (auto& slot : out_slots) slot.run = run.get();
+
+  PacedResult result;
+  const std::int64_t period_ns = static_cast<std::int64_t>(options.period_us) * 1000;
+  std::int64_t tick = now_ns_monotonic() + period_ns;
+  const std::int64_t start = now_ns_monotonic();
+  for (int frame = 0; frame < options.paced_frames; ++frame) {
+    // Events until the tick, then sleep to it exactly.
+    for (std::int64_t now = now_ns_monotonic(); now < tick; now = now_ns_monotonic()) {
+      timeval timeout{0, static_cast<long>(std::min<std::int64_t>(tick - now, 999'999'000) / 1000)};
+      libusb_handle_events_timeout_completed(context, &timeout, nullptr);
+    }
+    tick += period_ns;
+    if (frame > 0) {
+      if (!run->in_since_tick) ++result.missed;
+      if (run->have_newest && up::sequence_distance(run->last_sent, run->newest.out_sequence_applied) > 2) ++result.stale;
+    }
+    run->in_since_tick = false;
+    std::size_t free_slot = kOutSlots;
+    for (std::size_t i = 0; i < kOutSlots && free_slot == kOutSlots; ++i) {
+      if (!out_slots[i].busy) free_slot = i;
+    }
+    if (free_slot == kOutSlots) {
+      ++result.skipped;
+      continue;
+    }
+    up::OutReport out;
+    out.sequence = static_cast<std::uint16_t>(run->last_sent + 1);
+    out.flags = up::kOutFlagEnable;
+    out.channel_count = channels;
+    auto& buffer = out_buffers[free_slot];
+    auto* transfer = out_transfers[free_slot];
+    up::encode(out, std::span<std::uint8_t, up::kReportSize>(buffer.data(), up::kReportSize));
+    libusb_fill_interrupt_transfer(transfer, handle, ep.out, buffer.data(), static_cast<int>(up::kReportSize),
+                                   paced_out_done, &out_slots[free_slot], static_cast<unsigned>(options.timeout_ms));
+    run->sent_ns[out.sequence] = now_ns_monotonic();
+    if (libusb_submit_transfer(transfer) == 0) {
+      out_slots[free_slot].busy = true;
+      ++run->out_in_flight;
+      run->last_sent = out.sequence;
+      ++result.frames;
+    } else {
+      ++run->out_transfer_errors;
+    }
+  }
+  result.seconds = static_cast<double>(now_ns_monotonic() - start) * 1e-9;
+  // Drain: let the last answers arrive, then cancel the IN transfers.
+  const std::int64_t drain_until = now_ns_monotonic() + 200'000'000;
+  while (now_ns_monotonic() < drain_until && (run->out_in_flight > 0 || run->last_applied_seen != run->last_sent)) {
+    timeval timeout{0, 10'000};
+    libusb_handle_events_timeout_completed(context, &timeout, nullptr);
+  }
+  run->stopping = true;
+  for (auto* transfer : in_transfers) libusb_cancel_transfer(transfer);
+  const std::int64_t cancel_until = now_ns_monotonic() + 2'000'000'000;
+  while ((run->in_active > 0 || run->out_in_flight > 0) && now_ns_monotonic() < cancel_until) {
+    timeval timeout{0, 10'000};
+    libusb_handle_events_timeout_completed(context, &timeout, nullptr);
+  }
+  for (auto* transfer : in_transfers) libusb_free_transfer(transfer);
+  for (auto* transfer : out_transfers) libusb_free_transfer(transfer);
+  result.round_trip_us = std::move(run->round_trip_us);
+  result.errors = run->in_decode_errors + run->in_transfer_errors + run->out_transfer_errors;
+  std::printf("usb_probe: paced: IN reports %d, decode errors %d, IN transfer errors %d, OUT transfer errors %d\n",
+              run->in_reports, run->in_decode_errors, run->in_transfer_errors, run->out_transfer_errors);
+  for (std::size_t i = 0; i < run->out_error_status.size(); ++i) {
+    if (run->out_error_status[i] > 0) {
+      std::printf("usb_probe: paced: %d OUT transfers ended %s\n", run->out_error_status[i],
+                  transfer_status_name(static_cast<int>(i)));
+    }
+    if (run->in_error_status[i] > 0) {
+      std::printf("usb_probe: paced: %d IN transfers ended %s\n", run->in_error_status[i],
+                  transfer_status_name(static_cast<int>(i)));
+    }
+  }
+  return result;
+}
 
 bool parse_int(const char* text, int& value) {
   char* end = nullptr;
@@ -188,12 +394,14 @@ int main(int argc, char** argv) {
     else if (arg == "--exchange-watchdog-ms" && has_value) ok = parse_int(argv[++i], options.exchange_watchdog_ms);
     else if (arg == "--trip-watchdog-ms" && has_value) ok = parse_int(argv[++i], options.trip_watchdog_ms);
     else if (arg == "--timeout-ms" && has_value) ok = parse_int(argv[++i], options.timeout_ms);
+    else if (arg == "--paced-frames" && has_value) ok = parse_int(argv[++i], options.paced_frames);
+    else if (arg == "--period-us" && has_value) ok = parse_int(argv[++i], options.period_us);
     else ok = false;
     if (!ok) {
       std::fprintf(stderr,
                    "usage: usb_probe [--serial S] [--speed high|full|any] [--exchanges N] "
                    "[--current-ma MA] [--min-move COUNTS] [--exchange-watchdog-ms MS] "
-                   "[--trip-watchdog-ms MS] [--timeout-ms MS] [--json FILE]\n");
+                   "[--trip-watchdog-ms MS] [--timeout-ms MS] [--paced-frames N] [--period-us P] [--json FILE]\n");
       return 2;
     }
   }
@@ -329,10 +537,29 @@ int main(int argc, char** argv) {
   check(not_enabled == 0, "every report enabled");
   check(std::abs(moved) >= options.min_move, "encoder count moves with current");
 
+  // --- 4b. the paced run (optional) ---
+  PacedResult paced;
+  if (options.paced_frames > 0) {
+    paced = paced_run(context, handle, endpoints, channels, probe.out_sequence(), options);
+    // The synchronous probe continues after the paced run's sequences.
+    for (int i = 0; i < paced.frames; ++i) (void)probe.skip_sequence();
+    std::printf("usb_probe: paced at %d us: %d periods in %.2f s, %d OUT sent, %d not sent (4 in flight), "
+                "missed %d (%.3f %% of periods), stale %d, errors %d\n",
+                options.period_us, options.paced_frames, paced.seconds, paced.frames, paced.skipped, paced.missed,
+                100.0 * paced.missed / options.paced_frames, paced.stale, paced.errors);
+    std::printf("usb_probe: paced round trip OUT->IN us: min %.0f median %.0f p99 %.0f p99.9 %.0f max %.0f (%zu reports)\n",
+                percentile(paced.round_trip_us, 0.0), percentile(paced.round_trip_us, 0.5),
+                percentile(paced.round_trip_us, 0.99), percentile(paced.round_trip_us, 0.999),
+                percentile(paced.round_trip_us, 1.0), paced.round_trip_us.size());
+    check(paced.errors == 0, "paced run without transfer or decode errors");
+  }
+
   // --- 5. the watchdog ---
   check(probe.set_watchdog(options.trip_watchdog_ms) == 0, "SET_WATCHDOG for the trip");
   check(probe.send(up::kOutFlagEnable, channels, options.current_ma) == 0, "last report before silence");
-  (void)probe.receive(in, decoded, options.timeout_ms);
+  check(probe.receive(in, decoded, options.timeout_ms) == 0 && decoded == up::DecodeStatus::ok &&
+            (in.status & up::kStatusEnabled) != 0 && in.out_sequence_applied == probe.out_sequence(),
+        "the last report before silence is answered, enabled (SET_WATCHDOG did not trip at once)");
   const auto silent_from = std::chrono::steady_clock::now();
   up::InReport trip;
   const int trip_status = probe.receive(trip, decoded, options.trip_watchdog_ms * 20 + 2000);
@@ -368,7 +595,16 @@ int main(int argc, char** argv) {
          << ",\"max\":" << percentile(round_trip_us, 1.0) << "},\"transfer_errors\":" << transfer_errors
          << ",\"sequence_errors\":" << sequence_errors << ",\"moved_counts\":" << moved
          << ",\"speed\":\"" << speed_name(speed) << "\",\"watchdog_ms\":" << options.trip_watchdog_ms
-         << ",\"trip_after_ms\":" << trip_ms << ",\"failures\":" << failures << "}\n";
+         << ",\"trip_after_ms\":" << trip_ms;
+    if (options.paced_frames > 0) {
+      json << ",\"paced\":{\"period_us\":" << options.period_us << ",\"frames\":" << paced.frames
+           << ",\"seconds\":" << paced.seconds << ",\"missed\":" << paced.missed << ",\"stale\":" << paced.stale
+           << ",\"skipped\":" << paced.skipped << ",\"errors\":" << paced.errors
+           << ",\"round_trip_us\":{\"min\":" << percentile(paced.round_trip_us, 0.0)
+           << ",\"median\":" << percentile(paced.round_trip_us, 0.5) << ",\"p99\":" << percentile(paced.round_trip_us, 0.99)
+           << ",\"p999\":" << percentile(paced.round_trip_us, 0.999) << ",\"max\":" << percentile(paced.round_trip_us, 1.0) << "}}";
+    }
+    json << ",\"failures\":" << failures << "}\n";
   }
   libusb_release_interface(handle, endpoints.interface_number);
   libusb_close(handle);

@@ -4,7 +4,7 @@
 // over dummy_hcd, on a board with a USB device controller (a Raspberry Pi's dwc2) over a cable.
 //
 //   usbgadget --scene config/scenes/cbd.toml [--device FILE] [--script S] [--udc NAME]
-//             [--gadget-name NAME] [--serial S] [--ffs-dir DIR] [--no-configfs]
+//             [--gadget-name NAME] [--serial S] [--ffs-dir DIR] [--no-configfs] [--remove-stale]
 //             [--watchdog-ms N] [--period-us N] [--slow-motion N] [--events FILE|-]
 //             [--exit-after-idle S] [--max-seconds S]
 //
@@ -23,20 +23,24 @@
 #include <poll.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/eventfd.h>
 #include <sys/signalfd.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <sstream>
@@ -118,6 +122,9 @@ struct Shared {
   std::atomic<std::uint64_t> io_shutdowns{0};     // ESHUTDOWN: the host disabled the interface
   std::atomic<std::uint64_t> io_errors{0};
   std::vector<std::string> io_messages;           // first few I/O errors, for the events file
+  // Written when an applied report moved the watchdog deadline earlier (armed, or a shorter
+  // watchdog in force): the main thread may be sleeping towards the old one.
+  int wake_fd = -1;
 };
 
 void post_in(Shared& shared, const up::InReport& report) {
@@ -154,8 +161,13 @@ void out_reader(Shared& shared, int fd, const std::string& path, trainer::core::
     const std::int64_t now = clock.now_ns();
     std::lock_guard lock(shared.mutex);
     up::InReport in;
+    const std::int64_t deadline_before = shared.emulator->next_deadline_ns();
     if (shared.emulator->on_out_report(std::span(buffer.data(), static_cast<std::size_t>(got)), now, in)) {
       post_in(shared, in);
+    }
+    if (shared.emulator->next_deadline_ns() < deadline_before) {
+      const std::uint64_t one = 1;
+      (void)::write(shared.wake_fd, &one, sizeof(one));
     }
   }
   shared.reader_done.store(true);
@@ -302,6 +314,7 @@ int main(int argc, char** argv) {
   std::string serial = "usbgadget-0001";
   std::string ffs_dir;
   bool no_configfs = false;
+  bool remove_stale = false;
   int watchdog_ms = ug::kDefaultWatchdogMs;
   std::int64_t period_us = 0;
   std::int64_t slow_motion = 1;
@@ -330,6 +343,9 @@ int main(int argc, char** argv) {
   cli.add_flag("--no-configfs", no_configfs,
                "do not create, mount or bind anything: serve an existing functionfs mount "
                "(--ffs-dir) of a gadget set up and bound by someone else");
+  cli.add_flag("--remove-stale", remove_stale,
+               "first take apart a gadget of the same name left by a killed usbgadget (unbind, "
+               "unmount, remove)");
   cli.add_option("--watchdog-ms", watchdog_ms, "device watchdog (SET_WATCHDOG changes it)")
       ->check(CLI::Range(static_cast<int>(up::kMinWatchdogMs), static_cast<int>(up::kMaxWatchdogMs)));
   cli.add_option("--period-us", period_us,
@@ -429,6 +445,11 @@ int main(int argc, char** argv) {
 
   Shared shared;
   shared.emulator = &emulator;
+  shared.wake_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  if (shared.wake_fd < 0) {
+    std::cerr << "usbgadget: eventfd: " << std::strerror(errno) << '\n';
+    return 1;
+  }
   std::optional<ug::ConfigfsGadget> gadget;
   int ep0 = -1;
   int ep_in = -1;
@@ -443,6 +464,11 @@ int main(int argc, char** argv) {
 
   try {
     if (!no_configfs) {
+      if (remove_stale && std::filesystem::exists(std::filesystem::path(configfs_root) / gadget_name)) {
+        ug::remove_stale_gadget(std::filesystem::path(configfs_root) / gadget_name, ffs_dir);
+        events.write(monotonic_ns(), "stale_gadget_removed", configfs_root + "/" + gadget_name);
+        std::cerr << "usbgadget: removed the stale gadget " << configfs_root << "/" << gadget_name << '\n';
+      }
       gadget.emplace(configfs_root, gadget_name, ffs_dir);
       ug::GadgetIdentity identity;
       identity.vendor_id = up::kVendorId;
@@ -526,13 +552,17 @@ int main(int argc, char** argv) {
       if (max_ns > 0) wait_ns = std::min(wait_ns, start_ns + max_ns - now_real);
       if (idle_limit_ns > 0 && last_out > 0) wait_ns = std::min(wait_ns, last_out + idle_limit_ns - now_real);
       wait_ns = std::clamp<std::int64_t>(wait_ns, 0, 100'000'000);
-      std::array<pollfd, 2> fds{{{ep0, POLLIN, 0}, {signal_fd, POLLIN, 0}}};
+      std::array<pollfd, 3> fds{{{ep0, POLLIN, 0}, {signal_fd, POLLIN, 0}, {shared.wake_fd, POLLIN, 0}}};
       const timespec timeout{static_cast<time_t>(wait_ns / 1'000'000'000),
                              static_cast<long>(wait_ns % 1'000'000'000)};
       if (::ppoll(fds.data(), fds.size(), &timeout, nullptr) < 0 && errno != EINTR) {
         throw std::runtime_error(std::string("ppoll: ") + std::strerror(errno));
       }
       if ((fds[1].revents & POLLIN) != 0) break;
+      if ((fds[2].revents & POLLIN) != 0) {
+        std::uint64_t wakes = 0;
+        (void)::read(shared.wake_fd, &wakes, sizeof(wakes));
+      }
       if ((fds[0].revents & POLLIN) == 0) continue;
       std::array<usb_functionfs_event, 4> ffs_events{};
       const ssize_t got = ::read(ep0, ffs_events.data(), sizeof(ffs_events));
@@ -569,6 +599,12 @@ int main(int argc, char** argv) {
   shared.stop.store(true);
   stop_thread(reader, shared.reader_done, shared);
   stop_thread(writer, shared.writer_done, shared);
+  {
+    std::lock_guard lock(shared.mutex);  // a thread stuck in the kernel was detached
+    for (const ug::EmulatorEvent& event : emulator.take_events()) {
+      events.write(event.t_ns * slow_motion, event.kind, event.detail);
+    }
+  }
   for (int* fd : {&ep_in, &ep_out, &ep0}) {
     if (*fd >= 0) ::close(*fd);
     *fd = -1;
@@ -579,13 +615,8 @@ int main(int argc, char** argv) {
     events.write(monotonic_ns(), failures.empty() ? "gadget_removed" : "gadget_remove_failed",
                  gadget->gadget_dir().string());
   }
-  {
-    std::lock_guard lock(shared.mutex);
-    for (const ug::EmulatorEvent& event : emulator.take_events()) {
-      events.write(event.t_ns * slow_motion, event.kind, event.detail);
-    }
-  }
   ::close(signal_fd);
+  ::close(shared.wake_fd);
 
   const ug::EmulatorStats& stats = emulator.stats();
   std::cout << "usbgadget: stopped (" << end_reason << ") after "

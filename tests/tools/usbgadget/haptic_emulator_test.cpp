@@ -188,12 +188,16 @@ TEST_F(Emulator, WatchdogTripsLatchesAndClearsOnlyOnRequest) {
 TEST_F(Emulator, WatchdogFollowsSetWatchdog) {
   EXPECT_FALSE(emulator_.set_watchdog_ms(1));
   EXPECT_FALSE(emulator_.set_watchdog_ms(1001));
+  exchange(up::kOutFlagEnable);  // armed with the default 20 ms
   ASSERT_TRUE(emulator_.set_watchdog_ms(5));
   EXPECT_EQ(emulator_.identity().watchdog_ms, 5);
-  exchange(up::kOutFlagEnable);
+  // Not in force before the next report: a late request does not trip retroactively.
   up::InReport in;
+  EXPECT_FALSE(emulator_.on_time(now_ns_ - kMs + 6 * kMs, in));
+  exchange(up::kOutFlagEnable);
   EXPECT_FALSE(emulator_.on_time(now_ns_ - kMs + 5 * kMs, in));
   EXPECT_TRUE(emulator_.on_time(now_ns_ - kMs + 5 * kMs + 1, in));
+  EXPECT_EQ(emulator_.identity().watchdog_ms, 5);
 }
 
 TEST_F(Emulator, RefusedReportsAreFlaggedNotAnswered) {

@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 
 namespace trainer::tools::usbgadget {
@@ -53,6 +54,61 @@ std::vector<std::string> list_udcs(const fs::path& class_dir) {
   return names;
 }
 
+namespace {
+
+bool is_mount_point(const fs::path& path) {
+  std::ifstream mounts("/proc/self/mounts");
+  std::string device;
+  std::string mount_point;
+  std::string rest;
+  while (mounts >> device >> mount_point && std::getline(mounts, rest)) {
+    if (mount_point == path.string()) return true;
+  }
+  return false;
+}
+
+void remove_or_throw(const fs::path& path, bool is_link) {
+  if ((is_link ? ::unlink(path.c_str()) : ::rmdir(path.c_str())) != 0) {
+    const int error = errno;
+    throw std::runtime_error(path.string() + (is_link ? ": unlink: " : ": rmdir: ") + errno_text(error));
+  }
+}
+
+std::vector<fs::path> entries_of(const fs::path& dir) {
+  std::vector<fs::path> entries;
+  std::error_code error;
+  for (const auto& entry : fs::directory_iterator(dir, error)) entries.push_back(entry.path());
+  return entries;
+}
+
+}  // namespace
+
+void remove_stale_gadget(const fs::path& gadget_dir, const fs::path& ffs_dir) {
+  std::error_code error;
+  if (!fs::is_directory(gadget_dir, error)) return;
+  {
+    std::ifstream udc_file(gadget_dir / "UDC");
+    std::string udc;
+    std::getline(udc_file, udc);
+    if (!udc.empty()) write_attribute(gadget_dir / "UDC", "\n");
+  }
+  if (is_mount_point(ffs_dir) && ::umount2(ffs_dir.c_str(), 0) != 0) {
+    const int e = errno;
+    throw std::runtime_error(ffs_dir.string() + ": umount: " + errno_text(e) +
+                             " (is another usbgadget still running?)");
+  }
+  for (const fs::path& config : entries_of(gadget_dir / "configs")) {
+    for (const fs::path& entry : entries_of(config)) {
+      if (fs::is_symlink(fs::symlink_status(entry, error))) remove_or_throw(entry, true);
+    }
+    for (const fs::path& strings : entries_of(config / "strings")) remove_or_throw(strings, false);
+    remove_or_throw(config, false);
+  }
+  for (const fs::path& function : entries_of(gadget_dir / "functions")) remove_or_throw(function, false);
+  for (const fs::path& strings : entries_of(gadget_dir / "strings")) remove_or_throw(strings, false);
+  remove_or_throw(gadget_dir, false);
+}
+
 ConfigfsGadget::ConfigfsGadget(fs::path configfs_root, std::string name, fs::path ffs_dir)
     : root_(std::move(configfs_root)), name_(std::move(name)), gadget_dir_(root_ / name_),
       ffs_dir_(std::move(ffs_dir)) {}
@@ -77,8 +133,9 @@ void ConfigfsGadget::create(const GadgetIdentity& identity) {
   if (fs::exists(gadget_dir_, error)) {
     throw std::runtime_error(gadget_dir_.string() +
                              ": a gadget of this name exists (another program's, or left by a "
-                             "killed usbgadget): choose another --gadget-name, or unbind and "
-                             "remove it (docs/usb.md, \"Removing a stale gadget\")");
+                             "killed usbgadget): choose another --gadget-name, or remove it "
+                             "(--remove-stale, or by hand: docs/usb.md \"Removing a stale "
+                             "gadget\")");
   }
   make_dir(gadget_dir_);
   write_attribute(gadget_dir_ / "idVendor", hex4(identity.vendor_id));

@@ -62,6 +62,13 @@ class ConfigfsGadget {
   bool bound_ = false;
 };
 
+// Takes apart a gadget left by a usbgadget that could not clean up (SIGKILL): unbinds it,
+// unmounts `ffs_dir` if functionfs is mounted there, removes the configuration links and
+// directories, functions, strings and the gadget directory. Does nothing when `gadget_dir`
+// does not exist. Throws at the first step that fails, naming the path.
+void remove_stale_gadget(const std::filesystem::path& gadget_dir,
+                         const std::filesystem::path& ffs_dir);
+
 // Writes `text` to an existing sysfs/configfs attribute; throws naming the path.
 void write_attribute(const std::filesystem::path& path, const std::string& text);
 // The UDCs in /sys/class/udc (sorted).

@@ -46,7 +46,7 @@ up::Identity HapticEmulator::identity() const noexcept {
   identity.protocol_version = up::kProtocolVersion;
   identity.firmware_version = kFirmwareVersion;
   identity.channel_count = static_cast<std::uint8_t>(channel_count_);
-  identity.watchdog_ms = watchdog_ms_;
+  identity.watchdog_ms = watchdog_ms();
   identity.frame_interval_us = static_cast<std::uint32_t>(params_.frame_ns / 1000);
   identity.max_current_ma = max_current_ma_;
   return identity;
@@ -54,7 +54,7 @@ up::Identity HapticEmulator::identity() const noexcept {
 
 bool HapticEmulator::set_watchdog_ms(std::uint16_t watchdog_ms) noexcept {
   if (watchdog_ms < up::kMinWatchdogMs || watchdog_ms > up::kMaxWatchdogMs) return false;
-  watchdog_ms_ = watchdog_ms;
+  pending_watchdog_ms_ = watchdog_ms;
   return true;
 }
 
@@ -166,6 +166,10 @@ bool HapticEmulator::on_out_report(std::span<const std::uint8_t> bytes, std::int
   if (current_limited_) ++stats_.current_limited_reports;
 
   last_applied_ns_ = now_ns;
+  if (pending_watchdog_ms_ != 0) {
+    watchdog_ms_ = pending_watchdog_ms_;
+    pending_watchdog_ms_ = 0;
+  }
   out_sequence_applied_ = out.sequence;
   ++stats_.out_applied;
   fill_in(in, 0);

@@ -68,9 +68,14 @@ class HapticEmulator {
 
   std::size_t channel_count() const noexcept { return channel_count_; }
   hal::usbproto::Identity identity() const noexcept;
-  // SET_WATCHDOG: false (stall) outside kMinWatchdogMs .. kMaxWatchdogMs.
+  // SET_WATCHDOG: false (stall) outside kMinWatchdogMs .. kMaxWatchdogMs. The new value takes
+  // effect with the next applied OUT report (docs/usb-protocol.md): a request that comes late
+  // after the last report cannot trip the watchdog retroactively.
   bool set_watchdog_ms(std::uint16_t watchdog_ms) noexcept;
-  std::uint16_t watchdog_ms() const noexcept { return watchdog_ms_; }
+  // The watchdog set last (in force from the next applied OUT report after a SET_WATCHDOG).
+  std::uint16_t watchdog_ms() const noexcept {
+    return pending_watchdog_ms_ != 0 ? pending_watchdog_ms_ : watchdog_ms_;
+  }
 
   // One OUT transfer's bytes received at `now_ns`. True when the device answers: `in` is the IN
   // report to send. False when the report was refused (counted, flagged in the next IN report).
@@ -99,7 +104,8 @@ class HapticEmulator {
   hal::sim::SimDevice plant_;
   std::size_t channel_count_ = 0;
   std::uint16_t max_current_ma_ = 0;
-  std::uint16_t watchdog_ms_ = kDefaultWatchdogMs;
+  std::uint16_t watchdog_ms_ = kDefaultWatchdogMs;  // in force
+  std::uint16_t pending_watchdog_ms_ = 0;           // set, in force from the next report
 
   bool plant_started_ = false;
   bool armed_ = false;

@@ -56,7 +56,8 @@ inline constexpr std::int32_t kMaxWireCount = (1 << 23) - 1;
 inline constexpr std::uint8_t kRequestGetIdentity = 0x01;
 // SET_WATCHDOG: bmRequestType 0x41 (host-to-device), wValue = watchdog in ms
 // (kMinWatchdogMs..kMaxWatchdogMs), wIndex = interface number, wLength 0. Refused (stall)
-// outside the range; takes effect for the next OUT report.
+// outside the range; in force from the next applied OUT report on (so a request cannot trip
+// the watchdog retroactively).
 inline constexpr std::uint8_t kRequestSetWatchdog = 0x02;
 inline constexpr std::uint8_t kRequestTypeVendorInterfaceIn = 0xC1;
 inline constexpr std::uint8_t kRequestTypeVendorInterfaceOut = 0x41;
@@ -118,7 +119,7 @@ struct Identity {
   std::uint8_t protocol_version = kProtocolVersion;
   std::uint16_t firmware_version = 0;  // major << 8 | minor
   std::uint8_t channel_count = 0;      // 1..kMaxChannels on a real device
-  std::uint16_t watchdog_ms = 0;       // current device watchdog
+  std::uint16_t watchdog_ms = 0;       // device watchdog set (in force from the next OUT report)
   std::uint32_t frame_interval_us = 0;  // plant time the device advances per exchange
   std::uint16_t max_current_ma = 0;     // per-channel current limit the device clips to
 };
