@@ -105,6 +105,37 @@ hal::gpiod::GpioDeviceParams gpio_params_from(const config::DeviceConfig& device
   return params;
 }
 
+hal::libusb::UsbDeviceParams usb_params_from(const config::SceneConfig& scene) {
+  const config::DeviceConfig& device = scene.device;
+  const config::UsbConfig& usb = device.usb;
+  hal::libusb::UsbDeviceParams params;
+  params.name = device.name;
+  params.vendor_id = usb.vendor_id;
+  params.product_id = usb.product_id;
+  params.serial = usb.serial;
+  params.protocol_version = usb.protocol_version;
+  params.min_firmware_version = usb.min_firmware_version;
+  params.watchdog_ms = usb.watchdog_ms;
+  params.stale_limit_cycles = usb.stale_limit_cycles;
+  params.control_timeout_ns = usb.control_timeout_ns;
+  params.start_timeout_ns = usb.start_timeout_ns;
+  params.stop_timeout_ns = usb.stop_timeout_ns;
+  params.event_poll_ns = usb.event_poll_ns;
+  params.loop_period_ns = scene.loop.period_ns;
+  for (std::size_t i = 0; i < device.instruments.size(); ++i) {
+    const config::InstrumentDeviceConfig& instrument = device.instruments[i];
+    for (std::size_t j = 0; j < instrument.joints.size(); ++j) {
+      const std::string joint_name(config::to_string(static_cast<config::JointId>(j)));
+      hal::libusb::UsbChannelParams channel;
+      channel.channel_name = instrument.name + "." + joint_name;
+      channel.config_key = "instrument[" + std::to_string(i) + "]." + joint_name;
+      channel.scale = config::joint_scale(instrument.joints[j]);
+      params.channels.push_back(std::move(channel));
+    }
+  }
+  return params;
+}
+
 std::unique_ptr<hal::Device> with_digital_io(const config::DeviceConfig& device,
                                              std::unique_ptr<hal::Device> motion) {
   if (device.digital_io != config::DigitalIo::gpio) return motion;
@@ -119,6 +150,10 @@ core::Expected<std::unique_ptr<hal::Device>> make_hardware_device(
   if (device.backend == "canopen") {
     return with_digital_io(
         device, std::make_unique<hal::socketcan::CanopenDevice>(clock, canopen_params_from(scene)));
+  }
+  if (device.backend == "usb") {
+    return with_digital_io(device,
+                           std::make_unique<hal::libusb::UsbDevice>(clock, usb_params_from(scene)));
   }
   return core::make_error(device.source_path.string() + ": backend '" + device.backend +
                           "' has no hardware device in this build");

@@ -172,6 +172,65 @@ nlohmann::json models_json(const RunResult& r) {
   return models;
 }
 
+// The USB link as the host saw it (backend usb only; null otherwise).
+nlohmann::json usb_json(const RunResult& r) {
+  if (!r.usb) return nullptr;
+  const hal::libusb::UsbDiagnostics& u = *r.usb;
+  const hal::libusb::UsbFrameCounters& f = u.frames;
+  const auto us = [](std::int64_t ns) { return static_cast<double>(ns) * 1e-3; };
+  nlohmann::json lost = nullptr;
+  if (u.lost_reported) {
+    lost = {{"source", u.lost_source},
+            {"reported_at_cycle", u.lost_report_cycle},
+            {"latched_at_cycle", u.lost_latch_cycle},
+            {"reported_ns", u.lost_report_ns},
+            {"latched_ns", u.lost_latch_ns},
+            {"latch_delay_us", u.lost_latch_ns > 0 ? us(u.lost_latch_ns - u.lost_report_ns) : -1.0}};
+  }
+  return {{"serial", u.serial},
+          {"speed", u.speed},
+          {"firmware_version", u.firmware_version},
+          {"protocol_version", u.protocol_version},
+          {"channels", u.device_channels},
+          {"watchdog_ms", u.watchdog_ms},
+          {"max_current_ma", u.max_current_ma},
+          {"in_endpoint", u.in_endpoint},
+          {"out_endpoint", u.out_endpoint},
+          {"max_packet", u.max_packet},
+          {"interval", u.interval},
+          {"hotplug", u.hotplug},
+          {"cycles", f.cycles},
+          {"in_reports_used", f.in_reports_used},
+          {"stale_frames", f.stale_frames},
+          {"not_due_cycles", f.not_due_cycles},
+          {"stale_run_max", f.stale_run_max},
+          {"missed_frames", f.missed_frames},
+          {"in_superseded", f.in_superseded},
+          {"bad_reports", f.bad_reports},
+          {"out_published", f.out_published},
+          {"out_submitted", u.out_submitted},
+          {"out_superseded", u.out_superseded},
+          {"in_completed", u.in_completed},
+          {"out_completed", u.out_completed},
+          {"transfer_errors", u.transfer_errors},
+          {"acks", f.acks},
+          {"acks_unmatched", f.acks_unmatched},
+          {"watchdog_reports", f.watchdog_reports},
+          {"current_limited_reports", f.current_limited_cycles},
+          {"out_rejected_reports", f.out_rejected_reports},
+          {"round_trip_us",
+           {{"count", u.round_trips},
+            {"min", us(u.round_trip_min_ns)},
+            {"p50", us(u.round_trip_p50_ns)},
+            {"p99", us(u.round_trip_p99_ns)},
+            {"p999", us(u.round_trip_p999_ns)},
+            {"max", us(u.round_trip_max_ns)},
+            {"mean", u.round_trip_mean_ns * 1e-3}}},
+          {"device_lost", lost},
+          {"shutdown_acknowledged", u.shutdown_acknowledged},
+          {"faults", r.usb_faults}};
+}
+
 // The CAN bus as the master saw it (backend canopen only; null otherwise).
 nlohmann::json can_json(const RunResult& r) {
   if (!r.can) return nullptr;
@@ -265,6 +324,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"model_step_errors", r.app.model_step_errors},
       {"log_records_dropped", r.log_records_dropped},
       {"can", can_json(r)},
+      {"usb", usb_json(r)},
   };
 }
 
@@ -394,6 +454,17 @@ std::string report_summary(const RunResult& r) {
         << c.transport.rx_kernel_drops << " kernel drops, " << c.transport.tx_dropped
         << " frames not sent; faults: " << (r.can_faults.empty() ? "none" : r.can_faults)
         << "\n";
+  }
+  if (r.usb) {
+    const hal::libusb::UsbDiagnostics& u = *r.usb;
+    const hal::libusb::UsbFrameCounters& f = u.frames;
+    out << "  usb: " << f.in_reports_used << " IN reports used, " << f.stale_frames
+        << " stale cycles, " << f.missed_frames << " missed frames, " << f.bad_reports
+        << " bad reports, " << u.transfer_errors << " transfer errors; round trip p50 "
+        << static_cast<double>(u.round_trip_p50_ns) * 1e-3 << " us, p99 "
+        << static_cast<double>(u.round_trip_p99_ns) * 1e-3 << " us, max "
+        << static_cast<double>(u.round_trip_max_ns) * 1e-3 << " us over " << u.round_trips
+        << "; faults: " << (r.usb_faults.empty() ? "none" : r.usb_faults) << "\n";
   }
   return out.str();
 }

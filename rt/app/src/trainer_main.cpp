@@ -30,8 +30,9 @@ int main(int argc, char** argv) {
                      "config/devices/canopen_vcan.toml; its [device] backend is the HAL")
           ->check(CLI::ExistingFile);
   cli.add_option("--hal", options.hal,
-                 "device: the backend the device file names (sim or canopen); sim: the "
-                 "simulated bench with the device file's mechanism, whatever it names")
+                 "device: the backend the device file names (sim, canopen or usb, with its GPIO "
+                 "lines when it has digital_io = \"gpio\"); sim: the simulated bench with the "
+                 "device file's mechanism, whatever it names (and its GPIO lines)")
       ->check(CLI::IsMember({"device", "sim"}))
       ->capture_default_str();
   auto* cycles_opt =

@@ -278,6 +278,10 @@ void collect_result(const RunSetup& setup, bool status_known, RunResult& result)
     result.can = can->diagnostics();
     result.can_faults = can->fault_report();
   }
+  if (const auto* usb = dynamic_cast<const hal::libusb::UsbDevice*>(setup.device.get())) {
+    result.usb = usb->diagnostics();
+    result.usb_faults = usb->fault_report();
+  }
 }
 
 }  // namespace
@@ -312,6 +316,16 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
     if (auto refreshed = can->refresh_status(); !refreshed) {
       status_known = false;
       result.rt.warnings.push_back("shutdown check failed: " + refreshed.error().message);
+    }
+  }
+  // A USB device confirms the zero + disable report by acknowledging it (unless it is gone).
+  if (const auto* usb = dynamic_cast<const hal::libusb::UsbDevice*>(setup.device.get())) {
+    const hal::libusb::UsbDiagnostics usb_state = usb->diagnostics();
+    if (!usb_state.shutdown_acknowledged && !usb_state.lost_reported) {
+      status_known = false;
+      result.rt.warnings.push_back(
+          "shutdown check failed: the USB device did not acknowledge zero current + disable "
+          "within usb.stop_timeout_ms");
     }
   }
   result.wall_time_s =

@@ -53,10 +53,11 @@ using detail::IntRange;
 using detail::RealRange;
 using detail::TableReader;
 
-constexpr std::array<std::string_view, 2> kBackends = {"sim", "canopen"};
+constexpr std::array<std::string_view, 3> kBackends = {"sim", "canopen", "usb"};
 constexpr std::string_view kBackendNote =
-    "GPIO lines combine with either through [device] digital_io = \"gpio\"";
+    "GPIO lines combine with any of them through [device] digital_io = \"gpio\"";
 constexpr std::size_t kCanopenBackend = 1;
+constexpr std::size_t kUsbBackend = 2;
 
 // [canopen] ranges (docs/config.md). Heartbeat times are u16 milliseconds in the drives'
 // objects; the SYNC period a u32 of microseconds (0x1006) but a haptic loop needs <= 100 ms.
@@ -381,6 +382,52 @@ CanopenConfig read_canopen(TableReader& table, ErrorSink& errors) {
   return bus;
 }
 
+// [usb] ranges (docs/config.md). The watchdog range is the protocol's SET_WATCHDOG range; a
+// serial number string descriptor holds at most 126 UTF-16 characters.
+constexpr IntRange kUsbIdRange{0, 0xFFFF};
+constexpr std::size_t kMaxUsbSerialChars = 126;
+constexpr IntRange kUsbProtocolRange{1, 1};  // the versions this build speaks (hal/usbproto)
+constexpr IntRange kUsbWatchdogRangeMs{2, 1000};
+constexpr IntRange kUsbStaleLimitRange{1, 1000};
+constexpr IntRange kUsbControlTimeoutRangeMs{1, 10'000};
+constexpr IntRange kUsbStartTimeoutRangeMs{1, 60'000};
+constexpr IntRange kUsbStopTimeoutRangeMs{1, 10'000};
+constexpr IntRange kUsbEventPollRangeUs{50, 100'000};
+constexpr std::size_t kUsbMaxChannels = 16;  // usbproto::kMaxChannels (config does not link hal)
+
+UsbConfig read_usb(TableReader& table, ErrorSink& errors) {
+  UsbConfig usb;
+  usb.vendor_id = static_cast<std::uint16_t>(
+      table.optional_int("vendor_id", 0x1209, kUsbIdRange, "USB vendor id (idVendor)"));
+  usb.product_id = static_cast<std::uint16_t>(
+      table.optional_int("product_id", 0x0001, kUsbIdRange, "USB product id (idProduct)"));
+  usb.serial = table.required_string("serial", "the device's serial number string, \"\" = any");
+  if (errors.ok() && usb.serial.size() > kMaxUsbSerialChars) {
+    table.fail_value("serial", ": expected at most 126 characters (a USB string descriptor)");
+  }
+  usb.protocol_version = static_cast<std::uint8_t>(table.optional_int(
+      "protocol_version", 1, kUsbProtocolRange, "the protocol version this build speaks"));
+  if (table.has("min_firmware_version")) {
+    usb.min_firmware_version = static_cast<std::uint16_t>(table.required_int(
+        "min_firmware_version", kUsbIdRange, "major << 8 | minor, e.g. 0x0100 for 1.0"));
+  }
+  usb.watchdog_ms = static_cast<std::uint16_t>(table.optional_int(
+      "watchdog_ms", 20, kUsbWatchdogRangeMs, "milliseconds, the device's watchdog"));
+  usb.stale_limit_cycles = static_cast<std::uint32_t>(table.optional_int(
+      "stale_limit_cycles", 2, kUsbStaleLimitRange, "loop cycles without a new IN report"));
+  usb.control_timeout_ns = read_ms(table, "control_timeout_ms", 100, kUsbControlTimeoutRangeMs,
+                                   "milliseconds");
+  usb.start_timeout_ns =
+      read_ms(table, "start_timeout_ms", 2000, kUsbStartTimeoutRangeMs, "milliseconds");
+  usb.stop_timeout_ns =
+      read_ms(table, "stop_timeout_ms", 100, kUsbStopTimeoutRangeMs, "milliseconds");
+  usb.event_poll_ns = table.optional_int("event_poll_us", 10000, kUsbEventPollRangeUs,
+                                         "microseconds") *
+                      kNanosecondsPerMicrosecond;
+  table.finish();
+  return usb;
+}
+
 // The digital nodes must be drives of this file.
 void check_digital_nodes(const CanopenConfig& bus, const NodeOwners& owners, TableReader& table,
                          ErrorSink& errors) {
@@ -509,6 +556,7 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   const auto backend = device.required_choice("backend", kBackends, kBackendNote);
   if (backend) config.backend = std::string(kBackends[*backend]);
   const bool canopen = backend && *backend == kCanopenBackend;
+  const bool usb = backend && *backend == kUsbBackend;
   config.plant_substep_ns = device.optional_int("plant_substep_us", kDefaultPlantSubstepUs,
                                                 kPlantSubstepRangeUs, "microseconds") *
                             kNanosecondsPerMicrosecond;
@@ -539,6 +587,13 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
     owners[config.canopen.master_node_id] = canopen_table->qualified("master_node_id");
   }
 
+  // [usb] likewise belongs to the usb backend only.
+  std::optional<TableReader> usb_table;
+  if (usb) {
+    usb_table.emplace(root.required_table("usb"));
+    config.usb = read_usb(*usb_table, errors);
+  }
+
   auto instruments = root.array_of_tables("instrument", 1, kMaxDeviceInstruments, "instruments");
   for (std::size_t i = 0; i < instruments.size(); ++i) {
     InstrumentDeviceConfig instrument =
@@ -560,6 +615,17 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
         canopen_table->fail_value(key, ": expected -1: the digital words come from GPIO lines "
                                        "(device.digital_io = \"gpio\")");
       }
+    }
+  }
+  if (usb_table) {
+    // One protocol channel per joint: at most kUsbMaxChannels / kJointCount instruments.
+    constexpr std::size_t kUsbMaxInstruments = kUsbMaxChannels / kJointCount;
+    if (errors.ok() && instruments.size() > kUsbMaxInstruments) {
+      instruments[kUsbMaxInstruments].fail_value(
+          "name", " is instrument " + std::to_string(kUsbMaxInstruments + 1) +
+                      ": backend \"usb\" carries one channel per joint and at most " +
+                      std::to_string(kUsbMaxChannels) + " channels: expected at most " +
+                      std::to_string(kUsbMaxInstruments) + " instruments");
     }
   }
   root.finish();

@@ -297,8 +297,8 @@ const DeviceErrorCase kDeviceErrorCases[] = {
     {"substep_upper", "plant_substep_us = 100", "plant_substep_us = 1001",
      "device.plant_substep_us = 1001 is out of range: expected 1 to 1000 (microseconds)"},
     {"unknown_backend", "backend = \"sim\"", "backend = \"socketcan\"",
-     "device.backend = \"socketcan\": expected one of: sim, canopen (GPIO lines combine with "
-     "either through [device] digital_io = \"gpio\")"},
+     "device.backend = \"socketcan\": expected one of: sim, canopen, usb (GPIO lines combine "
+     "with any of them through [device] digital_io = \"gpio\")"},
     {"device_name", "name = \"sim-two-port\"", "name = \"sim two port\"",
      "device.name = \"sim two port\": expected a name of 1 to 32 characters from A-Z, a-z, "
      "0-9, '_' and '-'"},
@@ -528,6 +528,140 @@ TEST_F(DeviceFileTest, CanopenJointKeysInASimFileAreUnknown) {
   const auto edited = replace_first(sim, "counts_per_rev = 4096", "node_id = 1\ncounts_per_rev = 4096");
   const std::string message = error_message(load_device(write("sim.toml", edited.text)));
   expect_contains(message, "unknown key 'instrument[0].pitch.node_id'");
+}
+
+}  // namespace
+}  // namespace trainer::config
+
+// ---------------------------------------------------------------- backend "usb"
+
+namespace trainer::config {
+namespace {
+
+TEST(UsbDeviceFile, LoadsTheUsbTableAndTheSimMechanism) {
+  const auto device = load_device(repo_path("config/devices/usb_benchvm.toml"));
+  ASSERT_TRUE(device) << device.error().message;
+  EXPECT_EQ(device->backend, "usb");
+  const UsbConfig& usb = device->usb;
+  EXPECT_EQ(usb.vendor_id, 0x1209);
+  EXPECT_EQ(usb.product_id, 0x0001);
+  EXPECT_EQ(usb.serial, "usbgadget-0001");
+  EXPECT_EQ(usb.protocol_version, 1);
+  ASSERT_TRUE(usb.min_firmware_version.has_value());
+  EXPECT_EQ(*usb.min_firmware_version, 0x0100);
+  EXPECT_EQ(usb.watchdog_ms, 100);
+  EXPECT_EQ(usb.stale_limit_cycles, 5U);
+  EXPECT_EQ(usb.control_timeout_ns, 100'000'000);
+  EXPECT_EQ(usb.start_timeout_ns, 2'000'000'000);
+  EXPECT_EQ(usb.stop_timeout_ns, 100'000'000);
+  EXPECT_EQ(usb.event_poll_ns, 10'000'000);
+  // The mechanism is sim.toml's, joint for joint.
+  const auto sim = load_device(repo_path("config/devices/sim.toml"));
+  ASSERT_TRUE(sim);
+  ASSERT_EQ(device->instruments.size(), sim->instruments.size());
+  for (std::size_t i = 0; i < sim->instruments.size(); ++i) {
+    for (std::size_t j = 0; j < kJointCount; ++j) {
+      const JointConfig& a = device->instruments[i].joints[j];
+      const JointConfig& b = sim->instruments[i].joints[j];
+      EXPECT_EQ(a.counts_per_rev, b.counts_per_rev);
+      EXPECT_EQ(a.gear_ratio, b.gear_ratio);
+      EXPECT_EQ(a.current_limit_a, b.current_limit_a);
+      EXPECT_EQ(a.inertia, b.inertia);
+    }
+  }
+}
+
+struct UsbErrorCase {
+  const char* name;
+  const char* from;  // first occurrence in config/devices/usb_benchvm.toml is replaced
+  const char* to;
+  const char* expected;
+};
+
+std::ostream& operator<<(std::ostream& stream, const UsbErrorCase& error_case) {
+  return stream << error_case.name;
+}
+
+class UsbErrorTest : public ConfigFileTest, public ::testing::WithParamInterface<UsbErrorCase> {};
+
+TEST_P(UsbErrorTest, MessageNamesFileLineKeyValueAndExpectation) {
+  const UsbErrorCase& error_case = GetParam();
+  const std::string text = read_text(repo_path("config/devices/usb_benchvm.toml"));
+  const auto edited = replace_first(text, error_case.from, error_case.to);
+  const auto path = write("devices/usb.toml", edited.text);
+  const std::string message = error_message(load_device(path));
+  expect_contains(message, path.string() + ":" + std::to_string(edited.line) + ": " +
+                               error_case.expected);
+}
+
+const UsbErrorCase kUsbErrorCases[] = {
+    {"vendor_id_too_large", "vendor_id = 0x1209", "vendor_id = 0x10000",
+     "usb.vendor_id = 65536 is out of range: expected 0 to 65535 (USB vendor id (idVendor))"},
+    {"product_id_negative", "product_id = 0x0001", "product_id = -1",
+     "usb.product_id = -1 is out of range: expected 0 to 65535"},
+    {"serial_not_a_string", "serial = \"usbgadget-0001\"", "serial = 1",
+     "usb.serial"},
+    {"serial_too_long", "serial = \"usbgadget-0001\"",
+     "serial = \"0123456789012345678901234567890123456789012345678901234567890123456789"
+     "0123456789012345678901234567890123456789012345678901234567\"",
+     "usb.serial = \"0123456789012345678901234567890123456789012345678901234567890123456789"
+     "0123456789012345678901234567890123456789012345678901234567\": expected at most 126 "
+     "characters (a USB string descriptor)"},
+    {"protocol_version_unknown", "protocol_version = 1 ", "protocol_version = 2 ",
+     "usb.protocol_version = 2 is out of range: expected 1 to 1 (the protocol version this "
+     "build speaks)"},
+    {"watchdog_too_short", "watchdog_ms = 100", "watchdog_ms = 1",
+     "usb.watchdog_ms = 1 is out of range: expected 2 to 1000 (milliseconds, the device's "
+     "watchdog)"},
+    {"stale_limit_zero", "stale_limit_cycles = 5", "stale_limit_cycles = 0",
+     "usb.stale_limit_cycles = 0 is out of range: expected 1 to 1000"},
+    {"control_timeout_zero", "control_timeout_ms = 100", "control_timeout_ms = 0",
+     "usb.control_timeout_ms = 0 is out of range: expected 1 to 10000 (milliseconds)"},
+    {"start_timeout_too_long", "start_timeout_ms = 2000", "start_timeout_ms = 60001",
+     "usb.start_timeout_ms = 60001 is out of range: expected 1 to 60000"},
+    {"event_poll_too_short", "event_poll_us = 10000", "event_poll_us = 10",
+     "usb.event_poll_us = 10 is out of range: expected 50 to 100000 (microseconds)"},
+    {"firmware_too_large", "min_firmware_version = 0x0100", "min_firmware_version = 0x10000",
+     "usb.min_firmware_version = 65536 is out of range: expected 0 to 65535"},
+    {"unknown_usb_key", "watchdog_ms = 100", "watchdog = 100",
+     "unknown key 'usb.watchdog'"},
+};
+
+INSTANTIATE_TEST_SUITE_P(EveryMistake, UsbErrorTest, ::testing::ValuesIn(kUsbErrorCases),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
+TEST_F(DeviceFileTest, UsbWithoutItsTableIsAMissingTable) {
+  std::string text = read_text(repo_path("config/devices/usb_benchvm.toml"));
+  const auto begin = text.find("[usb]");
+  const auto end = text.find("[digital]");
+  text.erase(begin, end - begin);
+  expect_contains(error_message(load_device(write("usb.toml", text))), "[usb]");
+}
+
+TEST_F(DeviceFileTest, AUsbTableInASimFileIsUnknown) {
+  const std::string sim = read_text(repo_path("config/devices/sim.toml"));
+  const std::string message =
+      error_message(load_device(write("sim.toml", sim + "\n[usb]\nserial = \"x\"\n")));
+  expect_contains(message, "unknown key 'usb'");
+}
+
+TEST_F(DeviceFileTest, UsbCarriesAtMostSixteenChannelsSoThreeInstruments) {
+  const std::string text = read_text(repo_path("config/devices/usb_benchvm.toml"));
+  const auto first = text.find("[[instrument]]");
+  const auto second = text.find("[[instrument]]", first + 1);
+  const std::string one = text.substr(first, second - first);
+  std::string four = text;
+  for (int copy = 0; copy < 2; ++copy) {
+    std::string extra = one;
+    const std::string from = "name = \"left\"";
+    extra.replace(extra.find(from), from.size(), "name = \"extra" + std::to_string(copy) + "\"");
+    four += "\n" + extra;
+  }
+  const auto path = write("usb4.toml", four);
+  const std::string message = error_message(load_device(path));
+  expect_contains(message, "instrument[3].name = \"extra1\" is instrument 4: backend \"usb\" "
+                           "carries one channel per joint and at most 16 channels: expected at "
+                           "most 3 instruments");
 }
 
 }  // namespace

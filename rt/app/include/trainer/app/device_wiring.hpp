@@ -11,6 +11,7 @@
 #include "trainer/hal/device.hpp"
 #include "trainer/hal_gpiod/gpio_device.hpp"
 #include "trainer/hal_sim/sim_device.hpp"
+#include "trainer/hal_libusb/usb_device.hpp"
 #include "trainer/hal_socketcan/canopen_device.hpp"
 
 namespace trainer::app {
@@ -24,6 +25,10 @@ hal::sim::SimDeviceParams sim_params_from(const config::DeviceConfig& device,
 // The CiA 402 master's parameters: the device file's [canopen] table and drives (channel
 // order = instrument * 5 + joint, as on the simulated bench), the scene's loop period.
 hal::socketcan::CanopenDeviceParams canopen_params_from(const config::SceneConfig& scene);
+
+// The USB haptic interface's parameters: the device file's [usb] table and one channel per
+// joint (channel order = instrument * 5 + joint), the scene's loop period.
+hal::libusb::UsbDeviceParams usb_params_from(const config::SceneConfig& scene);
 
 // The GPIO lines of a device file's [gpio] table (digital_io = "gpio"): inputs then outputs,
 // in file order.

@@ -15,6 +15,7 @@
 #include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/loop/periodic_loop.hpp"
+#include "trainer/hal_libusb/usb_device.hpp"
 #include "trainer/hal_socketcan/canopen_device.hpp"
 #include "trainer/loop/rt_settings.hpp"
 
@@ -57,7 +58,7 @@ struct RunOptions {
 struct RunResult {
   std::filesystem::path scene_file;
   std::string scene_name;
-  std::string hal;  // the backend that ran: "sim" or "canopen"
+  std::string hal;  // the backend that ran: "sim", "canopen" or "usb"
   std::filesystem::path device_file;
   std::string time_source;
   std::int64_t slow_motion = 1;
@@ -87,6 +88,8 @@ struct RunResult {
   // CAN backend only: the bus's counters and the device's latched faults, decoded.
   std::optional<hal::socketcan::CanDiagnostics> can;
   std::string can_faults;
+  std::optional<hal::libusb::UsbDiagnostics> usb;  // backend usb only
+  std::string usb_faults;
 };
 
 core::Expected<RunResult> run_trainer(const RunOptions& options);

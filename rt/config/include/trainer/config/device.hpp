@@ -140,16 +140,34 @@ struct GpioConfig {
 };
 inline constexpr std::size_t kMaxGpioLines = 16;
 
+// The USB haptic interface (backend "usb", docs/usb-host.md, protocol docs/usb-protocol.md): which
+// device on the bus, what it must report, and the host's timing. One channel per joint in
+// instrument order (instrument[0].pitch, .yaw, .insertion, .roll, .grip, instrument[1].pitch...).
+struct UsbConfig {
+  std::uint16_t vendor_id = 0x1209;        // pid.codes test VID
+  std::uint16_t product_id = 0x0001;
+  std::string serial;                      // serial number string; empty = any (the only one)
+  std::uint8_t protocol_version = 1;       // the device's identity must report this
+  std::optional<std::uint16_t> min_firmware_version;  // major << 8 | minor
+  std::uint16_t watchdog_ms = 20;          // device watchdog, set at configure
+  std::uint32_t stale_limit_cycles = 2;    // stale cycles in a row that latch device_stopped
+  std::int64_t control_timeout_ns = 0;     // control requests and the OUT transfer
+  std::int64_t start_timeout_ns = 0;       // activate: first acknowledged exchange
+  std::int64_t stop_timeout_ns = 0;        // deactivate: zero + disable acknowledged
+  std::int64_t event_poll_ns = 0;          // event thread's longest sleep without events
+};
+
 struct DeviceConfig {
   std::filesystem::path source_path;  // absolute, lexically normal path of the file loaded
   std::string name;
-  std::string backend;                // "sim" or "canopen"
+  std::string backend;                // "sim", "canopen" or "usb"
   std::int64_t plant_substep_ns = 0;  // sim backend: integration step of the simulated plant
   DigitalConfig digital;
   std::vector<InstrumentDeviceConfig> instruments;  // 1..kMaxDeviceInstruments, names unique
   CanopenConfig canopen;              // [canopen], backend "canopen" only
   DigitalIo digital_io = DigitalIo::backend;  // [device] digital_io
   GpioConfig gpio;                    // [gpio], digital_io = "gpio" only
+  UsbConfig usb;                      // [usb], backend "usb" only
 };
 
 // Loads and validates a device file. On failure the message names the file, the line (when
