@@ -65,7 +65,7 @@ void UsbFrameLogic::reset() noexcept {
   ack_seen_ = false;
   sent_.fill(Sent{});
   counters_ = UsbFrameCounters{};
-  round_trip_.clear();
+  round_trip_.reset();
 }
 
 void UsbFrameLogic::latch(UsbFault fault) noexcept {

@@ -666,7 +666,7 @@ UsbDiagnostics UsbDevice::diagnostics() const {
   d.lost_latch_cycle = lost_latch_cycle_;
   d.lost_latch_ns = lost_latch_ns_;
   d.shutdown_acknowledged = shutdown_acknowledged_;
-  const LatencyHistogram& trip = logic_.round_trip();
+  const core::LatencyHistogram& trip = logic_.round_trip();
   d.round_trips = trip.count();
   d.round_trip_min_ns = trip.min_ns();
   d.round_trip_p50_ns = trip.percentile_ns(0.5);

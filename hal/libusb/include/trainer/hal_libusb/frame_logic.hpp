@@ -32,7 +32,7 @@
 #include "trainer/core/expected.hpp"
 #include "trainer/hal/device.hpp"
 #include "trainer/hal/joint_scale.hpp"
-#include "trainer/hal_libusb/latency_histogram.hpp"
+#include "trainer/core/histogram.hpp"
 #include "trainer/hal_usbproto/protocol.hpp"
 
 namespace trainer::hal::libusb {
@@ -122,7 +122,7 @@ class UsbFrameLogic {
   void restart_cycle_count() noexcept {
     counters_.cycles = 0;
     counters_.stale_run = 0;
-    round_trip_.clear();
+    round_trip_.reset();
     awaiting_answer_ = false;
   }
   void latch(UsbFault fault) noexcept;
@@ -135,7 +135,7 @@ class UsbFrameLogic {
   bool acknowledged(std::uint16_t sequence) const noexcept;
 
   const UsbFrameCounters& counters() const noexcept { return counters_; }
-  const LatencyHistogram& round_trip() const noexcept { return round_trip_; }
+  const core::LatencyHistogram& round_trip() const noexcept { return round_trip_; }
   // Watchdog bits are a fault only once the device was seen enabled without them (a trip
   // reported at start is what activate() clears).
   void arm_watchdog_check(bool armed) noexcept { watchdog_armed_ = armed; }
@@ -178,7 +178,7 @@ class UsbFrameLogic {
   bool ack_seen_ = false;
   std::array<Sent, kSentRing> sent_{};
   UsbFrameCounters counters_{};
-  LatencyHistogram round_trip_{};
+  core::LatencyHistogram round_trip_{};
 };
 
 }  // namespace trainer::hal::libusb

@@ -151,7 +151,7 @@ class UsbDevice final : public hal::Device,
   // Snapshot for the report (from the loop's thread or after it stopped).
   UsbDiagnostics diagnostics() const;
   std::string fault_report() const;
-  const LatencyHistogram& round_trip() const noexcept { return logic_.round_trip(); }
+  const core::LatencyHistogram& round_trip() const noexcept { return logic_.round_trip(); }
   const UsbDeviceParams& params() const noexcept { return params_; }
 
  private:
