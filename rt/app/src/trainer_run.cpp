@@ -16,6 +16,7 @@
 #include "trainer/core/clock.hpp"
 #include "trainer/core/log_ring.hpp"
 #include "trainer/core/triple_buffer.hpp"
+#include "trainer/hal/composite_device.hpp"
 #include "trainer/hal_sim/sim_device.hpp"
 #include "trainer/loop/rt_thread.hpp"
 #include "trainer/loop/stop_signals.hpp"
@@ -26,6 +27,13 @@ namespace {
 
 constexpr std::int64_t kSupervisorPeriodNs = 33'000'000;  // ~30 Hz telemetry / log drain
 constexpr double kScriptTailS = 0.5;  // keep running briefly after the script's last keyframe
+
+// The motion backend: the device itself, or the motion half of a composite (a device file
+// with digital_io = "gpio"), whose CAN or USB diagnostics and shutdown checks the report needs.
+hal::Device& motion_of(hal::Device& device) {
+  if (auto* composite = dynamic_cast<hal::CompositeDevice*>(&device)) return composite->motion();
+  return device;
+}
 
 void drain_log(core::LogRing& ring, const RunOptions& options) {
   core::LogRecord record;
@@ -169,8 +177,8 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
   // Power on last, just before the RT thread starts: a CAN drive's deadline monitoring must
   // not run while models load.
   if (auto activated = device.activate(); !activated) {
-    return fail(core::make_error(cfg.device.source_path.string() + ": " +
-                                 activated.error().message));
+    return fail(
+        core::make_error(cfg.device.source_path.string() + ": " + activated.error().message));
   }
   setup.arena->seal();  // from here on nothing may be carved from the arena
   return {};
@@ -274,11 +282,12 @@ void collect_result(const RunSetup& setup, bool status_known, RunResult& result)
   result.arena_bytes_used = setup.arena->used_bytes();
   result.arena_bytes_capacity = setup.arena->capacity_bytes();
   result.log_records_dropped = setup.log->dropped();
-  if (const auto* can = dynamic_cast<const hal::socketcan::CanopenDevice*>(setup.device.get())) {
+  if (const auto* can =
+          dynamic_cast<const hal::socketcan::CanopenDevice*>(&motion_of(*setup.device))) {
     result.can = can->diagnostics();
     result.can_faults = can->fault_report();
   }
-  if (const auto* usb = dynamic_cast<const hal::libusb::UsbDevice*>(setup.device.get())) {
+  if (const auto* usb = dynamic_cast<const hal::libusb::UsbDevice*>(&motion_of(*setup.device))) {
     result.usb = usb->diagnostics();
     result.usb_faults = usb->fault_report();
   }
@@ -312,14 +321,14 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   if (!ran) return std::move(ran).error();
   // A bus's drives report their state only in PDOs, which stop with the deactivation: ask them.
   bool status_known = true;
-  if (auto* can = dynamic_cast<hal::socketcan::CanopenDevice*>(setup.device.get())) {
+  if (auto* can = dynamic_cast<hal::socketcan::CanopenDevice*>(&motion_of(*setup.device))) {
     if (auto refreshed = can->refresh_status(); !refreshed) {
       status_known = false;
       result.rt.warnings.push_back("shutdown check failed: " + refreshed.error().message);
     }
   }
   // A USB device confirms the zero + disable report by acknowledging it (unless it is gone).
-  if (const auto* usb = dynamic_cast<const hal::libusb::UsbDevice*>(setup.device.get())) {
+  if (const auto* usb = dynamic_cast<const hal::libusb::UsbDevice*>(&motion_of(*setup.device))) {
     const hal::libusb::UsbDiagnostics usb_state = usb->diagnostics();
     if (!usb_state.shutdown_acknowledged && !usb_state.lost_reported) {
       status_known = false;
