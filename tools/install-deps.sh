@@ -13,6 +13,7 @@ packages=(
   libxxhash-dev          # xxHash64 integrity check of model images
   libusb-1.0-0-dev       # USB device backend
   libgpiod-dev           # GPIO lines backend (libgpiod v1 API on Debian 12)
+  libsystemd-dev         # sd_notify: READY/WATCHDOG/STOPPING of the trainer service (rt/appliance)
   libtomlplusplus-dev    # TOML parser for scene/device files
   libcli11-dev           # command-line parser
   nlohmann-json3-dev     # JSON reports

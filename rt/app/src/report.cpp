@@ -1,4 +1,5 @@
 #include "trainer/app/report.hpp"
+#include "trainer/app/rt_self_check.hpp"
 
 #include <cstdio>
 #include <sstream>
@@ -302,7 +303,8 @@ nlohmann::json report_json(const RunResult& r) {
         {"preempt_rt", r.rt.preempt_rt},
         {"kernel_release", r.rt.kernel_release},
         {"kernel_version", r.rt.kernel_version},
-        {"warnings", r.rt.warnings}}},
+        {"warnings", r.rt.warnings},
+        {"self_check", rt_check_json(r.rt_check)}}},
       {"safety",
        {{"faults_latched_at_end", r.latched_faults},
         {"first_fault", r.first_fault},

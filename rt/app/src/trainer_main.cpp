@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "trainer/app/report.hpp"
+#include "trainer/app/rt_self_check.hpp"
 #include "trainer/app/trainer_run.hpp"
 
 int main(int argc, char** argv) {
@@ -65,10 +66,21 @@ int main(int argc, char** argv) {
       "emulator's stalls in the bench VM)");
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
+  bool check_rt = false;
+  bool json = false;
+  std::string rt_check_root = "/";
+  cli.add_flag("--check-rt", check_rt,
+               "Run the RT self-check of this machine for the scene (and device file) and exit: "
+               "0 no fatal failure, 1 a check listed in loop.rt_check_fatal failed");
+  cli.add_flag("--json", json, "With --check-rt: print the results as JSON");
+  cli.add_option("--rt-check-root", rt_check_root,
+                 "Directory holding the /proc and /sys trees the RT self-check reads (tests)")
+      ->check(CLI::ExistingDirectory)
+      ->capture_default_str();
   cli.footer(
       "Run length defaults to the trainee script's length; a scene whose script never ends "
-      "runs until SIGINT/SIGTERM.\nExit status: 0 run completed, 1 setup error, 2 usage error, "
-      "3 run completed with a fault latched.");
+      "runs until SIGINT/SIGTERM.\nExit status: 0 run completed, 1 setup error (or a fatal RT "
+      "self-check failure), 2 usage error, 3 run completed with a fault latched.");
   CLI11_PARSE(cli, argc, argv);
 
   if (*device_opt) options.device_file = device_file;
@@ -82,6 +94,32 @@ int main(int argc, char** argv) {
   if (*overrun_opt) options.loop_overrides.overrun_streak_limit = overrun_limit;
   options.arm = !no_arm;
   options.apply_rt_settings = !no_rt;
+  options.rt_check_root = rt_check_root;
+
+  if (check_rt) {
+    trainer::config::LoadOptions load_options;
+    load_options.device_file = options.device_file;
+    auto scene = trainer::config::load_scene(options.scene_file, load_options);
+    if (!scene) {
+      std::cerr << "trainer: " << scene.error().message << "\n";
+      return 1;
+    }
+    if (auto overridden = trainer::config::apply_loop_overrides(scene->loop, options.loop_overrides);
+        !overridden) {
+      std::cerr << "trainer: " << overridden.error().message << "\n";
+      return 1;
+    }
+    const auto results = trainer::app::run_scene_rt_check(*scene, options.rt_check_root);
+    if (json) {
+      std::cout << trainer::app::rt_check_json(results).dump(2) << "\n";
+    } else {
+      std::cout << "scene " << options.scene_file.string() << ", device "
+                << scene->device.source_path.string() << ", loop.cpu " << scene->loop.cpu
+                << ", loop.priority " << scene->loop.priority << "\n"
+                << trainer::appliance::format_rt_check(results);
+    }
+    return trainer::appliance::rt_check_failed(results) ? 1 : 0;
+  }
 
   auto result = trainer::app::run_trainer(options);
   if (!result) {

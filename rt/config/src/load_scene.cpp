@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "table_reader.hpp"
+#include "trainer/appliance/rt_check.hpp"
 #include "trainer/config/scene.hpp"
 #include "value_text.hpp"
 
@@ -89,6 +90,22 @@ LoopConfig read_loop(TableReader& table) {
   loop.cpu_dma_latency_us = static_cast<int>(
       table.optional_int("cpu_dma_latency_us", -1, kCpuDmaLatencyRangeUs,
                          "microseconds, -1 = no request"));
+  if (auto fatal = table.optional_string_array("rt_check_fatal", 0, appliance::kRtCheckCount,
+                                               "RT self-check names")) {
+    for (const StringItem& item : *fatal) {
+      if (!appliance::rt_check_from_name(item.value)) {
+        std::string known;
+        for (const std::string_view name : appliance::kRtCheckNames)
+          known += (known.empty() ? "" : ", ") + std::string(name);
+        table.fail_item(item, ": unknown RT self-check; expected one of " + known);
+      } else if (std::find(loop.rt_check_fatal.begin(), loop.rt_check_fatal.end(), item.value) !=
+                 loop.rt_check_fatal.end()) {
+        table.fail_item(item, ": listed twice");
+      } else {
+        loop.rt_check_fatal.push_back(item.value);
+      }
+    }
+  }
   table.finish();
   return loop;
 }

@@ -340,6 +340,17 @@ const SceneErrorCase kSceneErrorCases[] = {
      "loop.stack_prefault_kib = 65537 is out of range: expected 0 to 65536 (kibibytes)"},
     {"cpu_dma_latency_below_range", "cpu_dma_latency_us = 0", "cpu_dma_latency_us = -2",
      "loop.cpu_dma_latency_us = -2 is out of range: expected -1 to 10000 (microseconds, -1 = no request)"},
+    {"rt_check_fatal_unknown", "cpu_dma_latency_us = 0",
+     "cpu_dma_latency_us = 0\nrt_check_fatal = [\"memlock\", \"preempt-rt\"]",
+     "loop.rt_check_fatal[1] = \"preempt-rt\": unknown RT self-check; expected one of "
+     "preempt_rt, isolated_cpu, cpu_dma_latency, cpu_governor, smt, rt_throttling, memlock, "
+     "rtprio, irq_threads", 1},
+    {"rt_check_fatal_twice", "cpu_dma_latency_us = 0",
+     "cpu_dma_latency_us = 0\nrt_check_fatal = [\"memlock\", \"memlock\"]",
+     "loop.rt_check_fatal[1] = \"memlock\": listed twice", 1},
+    {"rt_check_fatal_not_array", "cpu_dma_latency_us = 0",
+     "cpu_dma_latency_us = 0\nrt_check_fatal = \"memlock\"",
+     "loop.rt_check_fatal = \"memlock\" has type string: expected an array of ", 1},
     {"arena_zero", "arena_kib = 1024", "arena_kib = 0",
      "memory.arena_kib = 0 is out of range: expected 1 to 1048576 (kibibytes)"},
     {"max_force_typo", "max_force_n = 8.0", "max_forse_n = 8.0",

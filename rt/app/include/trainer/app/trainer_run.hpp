@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "trainer/app/haptic_app.hpp"
+#include "trainer/appliance/rt_check.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/loop/periodic_loop.hpp"
@@ -48,6 +49,9 @@ struct RunOptions {
   // bench VM runs code ~20x slower than the hardware) and debugging. 1 = the appliance.
   std::int64_t slow_motion = 1;
   bool apply_rt_settings = true;  // SCHED_FIFO, affinity, mlockall from the scene's [loop]
+  // Root of the /proc and /sys trees the RT self-check reads (tests give constructed trees).
+  // The check runs when RT settings are applied in real time, before the device is created.
+  std::filesystem::path rt_check_root = "/";
   bool arm = true;                // issue the explicit reset that arms the safety chain
   // Called from the supervisor thread about 30 times a second with the newest snapshot.
   std::function<void(const TelemetrySnapshot&)> on_telemetry;
@@ -66,6 +70,8 @@ struct RunResult {
   std::uint64_t requested_cycles = 0;
   loop::LoopStats loop;
   loop::RtReport rt;
+  // The RT self-check run before arming (empty when RT settings were not applied).
+  std::vector<appliance::RtCheckResult> rt_check;
   AppStats app;
   std::uint32_t latched_faults = 0;  // at the end of the run, before shutdown
   std::string first_fault;

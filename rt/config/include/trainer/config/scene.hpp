@@ -32,6 +32,9 @@ struct LoopConfig {                        // [loop]
   bool lock_memory = false;                // mlockall(MCL_CURRENT | MCL_FUTURE) before arming
   std::size_t stack_prefault_bytes = 0;    // stack touched before arming, from stack_prefault_kib
   int cpu_dma_latency_us = -1;             // PM QoS wake-up latency held while running; -1 = none
+  // RT self-check items (appliance::kRtCheckNames) whose failure stops the trainer before it
+  // arms when it applies RT settings; `trainer --check-rt` exits 1 on them. Default: none.
+  std::vector<std::string> rt_check_fatal;
 };
 
 struct MemoryConfig {           // [memory]
