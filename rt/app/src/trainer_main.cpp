@@ -2,6 +2,8 @@
 // HAL backend, prints a summary and optionally writes the JSON report (docs/report.md).
 #include <cstdint>
 #include <cstdio>
+#include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -10,6 +12,44 @@
 #include "trainer/app/report.hpp"
 #include "trainer/app/rt_self_check.hpp"
 #include "trainer/app/trainer_run.hpp"
+
+namespace {
+
+// DIR/<scene>-<YYYYmmddTHHMMSSZ>.json for a run started at `started`, with -2, -3, ... when a
+// run of the same scene started in the same second already wrote one. Creates DIR.
+trainer::core::Expected<std::filesystem::path> trainer_report_path(const std::filesystem::path& dir,
+                                                                   const std::string& scene,
+                                                                   std::time_t started) {
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (error) {
+    return trainer::core::make_error("--report-dir " + dir.string() + ": cannot create it: " +
+                                     error.message());
+  }
+  std::tm utc{};
+  gmtime_r(&started, &utc);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+  const std::string stem = scene + "-" + stamp;
+  std::filesystem::path path = dir / (stem + ".json");
+  for (int n = 2; std::filesystem::exists(path, error) && n < 1000; ++n) {
+    path = dir / (stem + "-" + std::to_string(n) + ".json");
+  }
+  return path;
+}
+
+// DIR/latest.json -> the newest report (a relative symlink, replaced atomically).
+void point_latest_at(const std::filesystem::path& report) {
+  const std::filesystem::path latest = report.parent_path() / "latest.json";
+  const std::filesystem::path temporary = report.parent_path() / ".latest.json.tmp";
+  std::error_code error;
+  std::filesystem::remove(temporary, error);
+  std::filesystem::create_symlink(report.filename(), temporary, error);
+  if (!error) std::filesystem::rename(temporary, latest, error);
+  if (error) std::cerr << "trainer: cannot update " << latest.string() << ": " << error.message() << "\n";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App cli{"Laparoscopic haptic trainer controller: runs a scene's haptic loop"};
@@ -41,7 +81,13 @@ int main(int argc, char** argv) {
   auto* seconds_opt =
       cli.add_option("--seconds", seconds, "Run length in seconds")->check(CLI::PositiveNumber);
   cycles_opt->excludes(seconds_opt);
-  cli.add_option("--report", report_file, "Write the JSON report to this file");
+  auto* report_opt = cli.add_option("--report", report_file, "Write the JSON report to this file");
+  std::string report_dir;
+  cli.add_option("--report-dir", report_dir,
+                 "Write the JSON report to DIR/<scene>-<UTC start time>.json and point "
+                 "DIR/latest.json at it (the appliance: /var/lib/trainer/reports); DIR is "
+                 "created if absent")
+      ->excludes(report_opt);
   cli.add_option("--time", time_source,
                  "real: CLOCK_MONOTONIC (the appliance); simulated: as fast as possible, "
                  "deterministic (simulated bench only)")
@@ -121,12 +167,21 @@ int main(int argc, char** argv) {
     return trainer::appliance::rt_check_failed(results) ? 1 : 0;
   }
 
+  const std::time_t started = std::time(nullptr);
   auto result = trainer::app::run_trainer(options);
   if (!result) {
     std::cerr << "trainer: " << result.error().message << "\n";
     return 1;
   }
   std::cout << trainer::app::report_summary(*result);
+  if (!report_dir.empty()) {
+    auto path = trainer_report_path(report_dir, result->scene_name, started);
+    if (!path) {
+      std::cerr << "trainer: " << path.error().message << "\n";
+      return 1;
+    }
+    report_file = path->string();
+  }
   if (!report_file.empty()) {
     std::ofstream out(report_file);
     out << trainer::app::report_json(*result).dump(2) << "\n";
@@ -135,6 +190,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::cout << "  report: " << report_file << "\n";
+    if (!report_dir.empty()) point_latest_at(report_file);
   }
   // The shutdown fault is expected at the end of every run; anything else means the run
   // ended faulted.

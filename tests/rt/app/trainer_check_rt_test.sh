@@ -33,7 +33,16 @@ grep -q 'preempt_rt: ' "$work/run.txt"
 echo "refused to arm: $(head -n1 "$work/run.txt")"
 
 "$trainer" --scene "$work/scene.toml" --hal sim --time simulated --cycles 100 \
-  --rt-check-root "$work/empty_root" >"$work/sim.txt" 2>&1 || { cat "$work/sim.txt"; exit 1; }
+  --rt-check-root "$work/empty_root" --report-dir "$work/reports" >"$work/sim.txt" 2>&1 ||
+  { cat "$work/sim.txt"; exit 1; }
+# --report-dir (the appliance's reports): timestamped files, latest.json -> the newest.
+"$trainer" --scene "$work/scene.toml" --hal sim --time simulated --cycles 100 \
+  --report-dir "$work/reports" >"$work/sim2.txt" 2>&1 || { cat "$work/sim2.txt"; exit 1; }
+[ "$(ls "$work/reports" | grep -c '^wall-[0-9]\{8\}T[0-9]\{6\}Z.*\.json$')" -eq 2 ] ||
+  { ls -l "$work/reports"; exit 1; }
+newest=$(grep -o 'report: .*' "$work/sim2.txt" | cut -d' ' -f2)
+[ "$(readlink -f "$work/reports/latest.json")" = "$(readlink -f "$newest")" ] ||
+  { echo "latest.json does not point at $newest"; ls -l "$work/reports"; exit 1; }
 
 status=0
 "$trainer" --check-rt --json --scene "$work/scene.toml" >"$work/live.json" || status=$?
