@@ -59,6 +59,41 @@ runuser -u trainer -- trainer --scene /etc/trainer/scene.toml --hal sim --time s
   --cycles 200 --report-dir /var/lib/trainer/reports >/tmp/run.txt 2>&1 || { cat /tmp/run.txt; fail "run"; }
 [ -L /var/lib/trainer/reports/latest.json ] || fail "no report"
 echo "installed: files, user, conffiles, image, unit verifies, a 200-cycle run wrote $(readlink /var/lib/trainer/reports/latest.json)"
+# What the unit grants, without systemd: user trainer with no capabilities, no new privileges,
+# RLIMIT_RTPRIO 95 and RLIMIT_MEMLOCK unlimited (LimitRTPRIO=, LimitMEMLOCK=) — enough for
+# SCHED_FIFO 80 and mlockall, and the self-check reads those limits, not a capability. Raising a
+# hard limit needs CAP_SYS_RESOURCE; where this root lacks it (a container), the same run checks
+# the other side: the limits it has are reported as failures and the run falls back.
+if prlimit --rtprio=95 --memlock=unlimited true 2>/dev/null; then limits=raised; else limits=as-is; fi
+as_service() {
+  if [ "$limits" = raised ]; then set -- prlimit --rtprio=95 --memlock=unlimited -- "$@"; fi
+  "$@"
+}
+service_user() {
+  as_service setpriv --reuid=trainer --regid=trainer --init-groups --no-new-privs \
+    --inh-caps=-all --bounding-set=-all -- "$@"
+}
+service_user trainer --check-rt --json --scene /etc/trainer/scene.toml >/tmp/check.json \
+  2>/tmp/check.err || true
+[ -s /tmp/check.json ] || { cat /tmp/check.err; fail "self-check as the service user"; }
+service_user trainer --scene /usr/share/trainer/examples/scenes/wall.toml --seconds 0.5 --cpu 0 \
+  --report /var/lib/trainer/reports/rt.json >/tmp/rt.txt 2>&1 || { cat /tmp/rt.txt; fail "RT run as the service user"; }
+python3 - /tmp/check.json /var/lib/trainer/reports/rt.json "$limits" <<'PY' || fail "RT limits as the service user"
+import json, sys
+checks = {c["check"]: c for c in json.load(open(sys.argv[1]))["checks"]}
+rt = json.load(open(sys.argv[2]))["rt"]
+if sys.argv[3] == "raised":
+    assert checks["memlock"]["outcome"] == "pass" and "unlimited" in checks["memlock"]["detail"], checks["memlock"]
+    assert checks["rtprio"]["outcome"] == "pass" and "RLIMIT_RTPRIO 95" in checks["rtprio"]["detail"], checks["rtprio"]
+    assert rt["policy"] == "SCHED_FIFO" and rt["priority"] == 80 and rt["memory_locked"] is True, rt
+    print(f"as user trainer with the unit's limits: {rt['policy']} {rt['priority']}, memory locked")
+else:
+    assert checks["rtprio"]["outcome"] == "fail" and "LimitRTPRIO=" in checks["rtprio"]["fix"], checks["rtprio"]
+    assert checks["memlock"]["outcome"] == "fail" and "KiB" in checks["memlock"]["detail"], checks["memlock"]
+    assert rt["policy"] == "SCHED_OTHER" and rt["warnings"], rt
+    print("limits cannot be raised here (no CAP_SYS_RESOURCE): as user trainer the self-check "
+          f"fails rtprio/memlock ({checks['rtprio']['detail']}) and the run falls back to {rt['policy']}")
+PY
 
 echo "# local edit" >>/etc/trainer/scene.toml
 dpkg -i /tmp/pkg/trainer_upgrade.deb
