@@ -8,7 +8,8 @@ appliance::RtCheckRequest rt_check_request(const config::SceneConfig& scene) {
   request.priority = scene.loop.priority;
   request.lock_memory = scene.loop.lock_memory;
   request.cpu_dma_latency_us = scene.loop.cpu_dma_latency_us;
-  if (scene.device.backend == "canopen") request.can_interfaces.push_back(scene.device.canopen.interface);
+  if (scene.device.backend == "canopen")
+    request.can_interfaces.push_back(scene.device.canopen.interface);
   request.usb = scene.device.backend == "usb";
   for (const std::string& name : scene.loop.rt_check_fatal) {
     // The loader accepted only known names.
@@ -44,8 +45,7 @@ core::Expected<void> refuse_on_fatal(const config::SceneConfig& scene,
     message += "\n  " + std::string(appliance::to_string(result.id)) + ": " + result.detail +
                "\n    fix: " + result.fix;
   }
-  message += "\n(trainer --check-rt --scene " + scene.source_path.string() +
-             " shows every check)";
+  message += "\n(trainer --check-rt --scene " + scene.source_path.string() + " shows every check)";
   return core::make_error(message);
 }
 

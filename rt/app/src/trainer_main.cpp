@@ -23,8 +23,8 @@ trainer::core::Expected<std::filesystem::path> trainer_report_path(const std::fi
   std::error_code error;
   std::filesystem::create_directories(dir, error);
   if (error) {
-    return trainer::core::make_error("--report-dir " + dir.string() + ": cannot create it: " +
-                                     error.message());
+    return trainer::core::make_error("--report-dir " + dir.string() +
+                                     ": cannot create it: " + error.message());
   }
   std::tm utc{};
   gmtime_r(&started, &utc);
@@ -46,7 +46,8 @@ void point_latest_at(const std::filesystem::path& report) {
   std::filesystem::remove(temporary, error);
   std::filesystem::create_symlink(report.filename(), temporary, error);
   if (!error) std::filesystem::rename(temporary, latest, error);
-  if (error) std::cerr << "trainer: cannot update " << latest.string() << ": " << error.message() << "\n";
+  if (error)
+    std::cerr << "trainer: cannot update " << latest.string() << ": " << error.message() << "\n";
 }
 
 }  // namespace
@@ -150,7 +151,8 @@ int main(int argc, char** argv) {
       std::cerr << "trainer: " << scene.error().message << "\n";
       return 1;
     }
-    if (auto overridden = trainer::config::apply_loop_overrides(scene->loop, options.loop_overrides);
+    if (auto overridden =
+            trainer::config::apply_loop_overrides(scene->loop, options.loop_overrides);
         !overridden) {
       std::cerr << "trainer: " << overridden.error().message << "\n";
       return 1;

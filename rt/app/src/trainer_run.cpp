@@ -13,7 +13,6 @@
 #include "trainer/app/rt_self_check.hpp"
 #include "trainer/appliance/service_notifier.hpp"
 #include "trainer/appliance/watchdog_health.hpp"
-#include "trainer/safety/safety_supervisor.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
@@ -24,6 +23,7 @@
 #include "trainer/hal_sim/sim_device.hpp"
 #include "trainer/loop/rt_thread.hpp"
 #include "trainer/loop/stop_signals.hpp"
+#include "trainer/safety/safety_supervisor.hpp"
 
 namespace trainer::app {
 
@@ -241,8 +241,8 @@ class ServiceSupervision {
       }
       ready_ = true;
       char text[160];
-      std::snprintf(text, sizeof text, "%s scene %s: loop at %.0f Hz", arm_ ? "armed" : "running unarmed",
-                    scene_name_.c_str(), rate_hz_);
+      std::snprintf(text, sizeof text, "%s scene %s: loop at %.0f Hz",
+                    arm_ ? "armed" : "running unarmed", scene_name_.c_str(), rate_hz_);
       notifier_.ready(text);
     }
     const bool overrun = (latched_faults_ & safety::bit(safety::Fault::overrun_streak)) != 0;
@@ -251,7 +251,8 @@ class ServiceSupervision {
                               {cycle_, overrun, finished})) {
       notifier_.watchdog();
     }
-    if (watchdog_.health() != reported_health_ && watchdog_.health() != appliance::LoopHealth::not_started) {
+    if (watchdog_.health() != reported_health_ &&
+        watchdog_.health() != appliance::LoopHealth::not_started) {
       reported_health_ = watchdog_.health();
       notifier_.status("loop " + std::string(appliance::to_string(reported_health_)) +
                        (reported_health_ == appliance::LoopHealth::healthy

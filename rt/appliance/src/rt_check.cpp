@@ -131,10 +131,11 @@ std::string format_rt_check(const std::vector<RtCheckResult>& results) {
     if (!result.fix.empty()) text += "        fix: " + result.fix + "\n";
     if (result.outcome == RtOutcome::warn) ++warnings;
     if (result.outcome == RtOutcome::fail) ++failures;
-    if (result.fatal) fatal_names += (fatal_names.empty() ? "" : ", ") + name.substr(0, name.find(' '));
+    if (result.fatal)
+      fatal_names += (fatal_names.empty() ? "" : ", ") + name.substr(0, name.find(' '));
   }
-  text += "result: " + std::to_string(failures) + " failed, " + std::to_string(warnings) +
-          " warned";
+  text +=
+      "result: " + std::to_string(failures) + " failed, " + std::to_string(warnings) + " warned";
   text += fatal_names.empty() ? "; none of the scene's fatal checks failed\n"
                               : "; fatal (loop.rt_check_fatal): " + fatal_names + "\n";
   return text;

@@ -94,8 +94,8 @@ RtCheckResult check_isolated_cpu(const SystemFiles& files, const RtCheckRequest&
   const std::string cpu = std::to_string(request.cpu);
   const std::string cmdline = files.read("/proc/cmdline").value_or("");
   std::vector<int> isolated =
-      parse_cpu_list(files.read("/sys/devices/system/cpu/isolated").value_or("")).value_or(
-          std::vector<int>{});
+      parse_cpu_list(files.read("/sys/devices/system/cpu/isolated").value_or(""))
+          .value_or(std::vector<int>{});
   if (auto from_cmdline = cmdline_cpus(cmdline, "isolcpus")) {
     isolated.insert(isolated.end(), from_cmdline->begin(), from_cmdline->end());
   }
@@ -179,11 +179,11 @@ RtCheckResult check_smt(const SystemFiles& files, const RtCheckRequest& request)
                      active ? "SMT is not active" : "no SMT control (single thread per core)");
   }
   if (request.cpu >= 0) {
-    const auto siblings = parse_cpu_list(
-        files
-            .read("/sys/devices/system/cpu/cpu" + std::to_string(request.cpu) +
-                  "/topology/thread_siblings_list")
-            .value_or(""));
+    const auto siblings =
+        parse_cpu_list(files
+                           .read("/sys/devices/system/cpu/cpu" + std::to_string(request.cpu) +
+                                 "/topology/thread_siblings_list")
+                           .value_or(""));
     const std::vector<int> isolated =
         parse_cpu_list(files.read("/sys/devices/system/cpu/isolated").value_or(""))
             .value_or(std::vector<int>{});
@@ -260,8 +260,8 @@ RtCheckResult check_memlock(const SystemFiles& files, const RtCheckRequest& requ
     return result_of(RtCheckId::memlock, RtOutcome::pass,
                      "CAP_IPC_LOCK held: memory locking is not limited" + why);
   }
-  const SoftLimit limit = soft_limit(files.read("/proc/self/limits").value_or(""),
-                                     "Max locked memory");
+  const SoftLimit limit =
+      soft_limit(files.read("/proc/self/limits").value_or(""), "Max locked memory");
   const std::string fix =
       "LimitMEMLOCK=infinity in the unit (trainer.service has it); for a shell: "
       "'trainer - memlock unlimited' in /etc/security/limits.d/trainer.conf";
@@ -291,9 +291,9 @@ RtCheckResult check_rtprio(const SystemFiles& files, const RtCheckRequest& reque
   }
   const SoftLimit limit =
       soft_limit(files.read("/proc/self/limits").value_or(""), "Max realtime priority");
-  const std::string fix =
-      "LimitRTPRIO=" + wanted + " (or higher) in the unit (trainer.service has 95); for a "
-      "shell: 'trainer - rtprio 95' in /etc/security/limits.d/trainer.conf";
+  const std::string fix = "LimitRTPRIO=" + wanted +
+                          " (or higher) in the unit (trainer.service has 95); for a "
+                          "shell: 'trainer - rtprio 95' in /etc/security/limits.d/trainer.conf";
   if (!limit.found) {
     return result_of(RtCheckId::rtprio, RtOutcome::warn,
                      "cannot read RLIMIT_RTPRIO from /proc/self/limits", fix);
@@ -304,10 +304,10 @@ RtCheckResult check_rtprio(const SystemFiles& files, const RtCheckRequest& reque
                          (limit.value ? std::to_string(*limit.value) : std::string("unlimited")) +
                          " allows SCHED_FIFO " + wanted);
   }
-  return result_of(RtCheckId::rtprio, RtOutcome::fail,
-                   "RLIMIT_RTPRIO is " + std::to_string(*limit.value) +
-                       ": SCHED_FIFO " + wanted + " is refused",
-                   fix);
+  return result_of(
+      RtCheckId::rtprio, RtOutcome::fail,
+      "RLIMIT_RTPRIO is " + std::to_string(*limit.value) + ": SCHED_FIFO " + wanted + " is refused",
+      fix);
 }
 
 // IRQ numbers whose /proc/interrupts line names one of `names` (its device names after the
@@ -334,7 +334,7 @@ std::vector<int> irqs_named(const std::string& interrupts, const std::vector<std
 struct IrqThread {
   std::string pid;
   std::string comm;
-  int policy = 0;       // 1 = SCHED_FIFO, 2 = SCHED_RR
+  int policy = 0;  // 1 = SCHED_FIFO, 2 = SCHED_RR
   int rt_priority = 0;
 };
 
@@ -430,21 +430,23 @@ RtCheckResult check_irq_threads(const SystemFiles& files, const RtCheckRequest& 
   }
   const std::string detail = seen.empty() ? std::string{} : seen.substr(0, seen.size() - 2);
   if (!below.empty()) {
-    return result_of(RtCheckId::irq_threads, RtOutcome::fail,
-                     "below the loop's SCHED_FIFO " + std::to_string(request.priority) + ": " +
-                         below + "(" + detail + ")",
-                     fix + "at boot: a udev/systemd unit running chrt on the irq/ threads (docs/appliance.md)");
+    return result_of(
+        RtCheckId::irq_threads, RtOutcome::fail,
+        "below the loop's SCHED_FIFO " + std::to_string(request.priority) + ": " + below + "(" +
+            detail + ")",
+        fix + "at boot: a udev/systemd unit running chrt on the irq/ threads (docs/appliance.md)");
   }
   if (!warnings.empty()) {
-    return result_of(RtCheckId::irq_threads, RtOutcome::warn,
-                     warnings.substr(0, warnings.size() - 2) + (detail.empty() ? "" : " (" + detail + ")"),
-                     "bring the interface up (docs/appliance.md, CAN setup) on a PREEMPT_RT kernel "
-                     "(IRQs are threads there)");
+    return result_of(
+        RtCheckId::irq_threads, RtOutcome::warn,
+        warnings.substr(0, warnings.size() - 2) + (detail.empty() ? "" : " (" + detail + ")"),
+        "bring the interface up (docs/appliance.md, CAN setup) on a PREEMPT_RT kernel "
+        "(IRQs are threads there)");
   }
-  return result_of(RtCheckId::irq_threads, RtOutcome::pass,
-                   detail + (request.priority > 0 ? " (loop SCHED_FIFO " +
-                                                        std::to_string(request.priority) + ")"
-                                                  : ""));
+  return result_of(
+      RtCheckId::irq_threads, RtOutcome::pass,
+      detail + (request.priority > 0 ? " (loop SCHED_FIFO " + std::to_string(request.priority) + ")"
+                                     : ""));
 }
 
 }  // namespace
@@ -461,9 +463,9 @@ std::vector<RtCheckResult> run_rt_check(const SystemFiles& files, const RtCheckR
   results.push_back(check_rtprio(files, request));
   results.push_back(check_irq_threads(files, request));
   for (RtCheckResult& result : results) {
-    result.fatal = result.outcome == RtOutcome::fail &&
-                   std::find(request.fatal.begin(), request.fatal.end(), result.id) !=
-                       request.fatal.end();
+    result.fatal =
+        result.outcome == RtOutcome::fail &&
+        std::find(request.fatal.begin(), request.fatal.end(), result.id) != request.fatal.end();
   }
   return results;
 }

@@ -39,7 +39,9 @@ void ServiceNotifier::status(std::string_view status) const {
   send("STATUS=" + service_status_line(status));
 }
 
-void ServiceNotifier::watchdog() const { send("WATCHDOG=1"); }
+void ServiceNotifier::watchdog() const {
+  send("WATCHDOG=1");
+}
 
 void ServiceNotifier::stopping(std::string_view status) const {
   send("STOPPING=1\nSTATUS=" + service_status_line(status));

@@ -29,8 +29,9 @@ class RtCheckTree : public ::testing::Test {
     write("/sys/kernel/realtime", "1\n");
     write("/proc/sys/kernel/osrelease", "6.1.0-27-rt-amd64\n");
     write("/proc/sys/kernel/version", "#1 SMP PREEMPT_RT Debian 6.1.115-1 (2024-11-01)\n");
-    write("/proc/cmdline", "BOOT_IMAGE=/vmlinuz root=/dev/sda1 isolcpus=managed_irq,domain,1,3 "
-                           "nohz_full=1,3 rcu_nocbs=1,3 irqaffinity=0,2 quiet\n");
+    write("/proc/cmdline",
+          "BOOT_IMAGE=/vmlinuz root=/dev/sda1 isolcpus=managed_irq,domain,1,3 "
+          "nohz_full=1,3 rcu_nocbs=1,3 irqaffinity=0,2 quiet\n");
     write("/sys/devices/system/cpu/isolated", "1,3\n");
     write("/sys/devices/system/cpu/nohz_full", "1,3\n");
     write("/dev/cpu_dma_latency", "");

@@ -9,8 +9,8 @@ namespace trainer::appliance {
 namespace {
 
 constexpr std::uint64_t kWatchdogUsec = 2'000'000;  // WatchdogSec=2
-constexpr std::int64_t kTickNs = 33'000'000;       // the supervisor's period
-constexpr std::int64_t kPeriodNs = 1'000'000;      // a 1 kHz loop
+constexpr std::int64_t kTickNs = 33'000'000;        // the supervisor's period
+constexpr std::int64_t kPeriodNs = 1'000'000;       // a 1 kHz loop
 
 TEST(WatchdogHealth, HealthyLoopIsPingedAtHalfTheWatchdogPeriod) {
   WatchdogHealth health(kWatchdogUsec);

@@ -35,8 +35,8 @@ enum class RtCheckId : std::uint8_t {
 inline constexpr std::size_t kRtCheckCount = 9;
 // The names the scene's loop.rt_check_fatal and the output use, in RtCheckId order.
 inline constexpr std::array<std::string_view, kRtCheckCount> kRtCheckNames = {
-    "preempt_rt", "isolated_cpu", "cpu_dma_latency", "cpu_governor", "smt",
-    "rt_throttling", "memlock",    "rtprio",          "irq_threads"};
+    "preempt_rt",    "isolated_cpu", "cpu_dma_latency", "cpu_governor", "smt",
+    "rt_throttling", "memlock",      "rtprio",          "irq_threads"};
 std::string_view to_string(RtCheckId id) noexcept;
 std::optional<RtCheckId> rt_check_from_name(std::string_view name) noexcept;
 
@@ -56,13 +56,13 @@ struct RtCheckResult {
 
 // What the scene and device file ask of the machine.
 struct RtCheckRequest {
-  int cpu = -1;                              // loop.cpu; -1 = not pinned
-  int priority = 0;                          // loop.priority; 0 = SCHED_OTHER
-  bool lock_memory = false;                  // loop.lock_memory
-  int cpu_dma_latency_us = -1;               // loop.cpu_dma_latency_us; -1 = no request
-  std::vector<std::string> can_interfaces;   // SocketCAN interfaces the device file names
-  bool usb = false;                          // the device file's backend is usb
-  std::vector<RtCheckId> fatal;              // loop.rt_check_fatal
+  int cpu = -1;                             // loop.cpu; -1 = not pinned
+  int priority = 0;                         // loop.priority; 0 = SCHED_OTHER
+  bool lock_memory = false;                 // loop.lock_memory
+  int cpu_dma_latency_us = -1;              // loop.cpu_dma_latency_us; -1 = no request
+  std::vector<std::string> can_interfaces;  // SocketCAN interfaces the device file names
+  bool usb = false;                         // the device file's backend is usb
+  std::vector<RtCheckId> fatal;             // loop.rt_check_fatal
 };
 
 // Reads files below a root directory: SystemFiles("/") is the live system.

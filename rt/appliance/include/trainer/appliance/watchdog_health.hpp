@@ -18,9 +18,9 @@
 namespace trainer::appliance {
 
 struct LoopObservation {
-  std::uint64_t cycle = 0;    // the newest telemetry snapshot's cycle counter
-  bool loop_fault = false;    // an overrun-streak fault is latched
-  bool finished = false;      // the RT loop has returned
+  std::uint64_t cycle = 0;  // the newest telemetry snapshot's cycle counter
+  bool loop_fault = false;  // an overrun-streak fault is latched
+  bool finished = false;    // the RT loop has returned
 };
 
 enum class LoopHealth : std::uint8_t { healthy, not_started, stalled, faulted, finished };
