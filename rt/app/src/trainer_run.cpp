@@ -11,8 +11,7 @@
 
 #include "trainer/app/device_wiring.hpp"
 #include "trainer/app/rt_self_check.hpp"
-#include "trainer/appliance/service_notifier.hpp"
-#include "trainer/appliance/watchdog_health.hpp"
+#include "trainer/app/service_supervision.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
@@ -23,7 +22,6 @@
 #include "trainer/hal_sim/sim_device.hpp"
 #include "trainer/loop/rt_thread.hpp"
 #include "trainer/loop/stop_signals.hpp"
-#include "trainer/safety/safety_supervisor.hpp"
 
 namespace trainer::app {
 
@@ -208,82 +206,6 @@ void record_safety(const safety::SafetySupervisor& safety, RunResult& result) {
   }
 }
 
-// What systemd hears from a Type=notify service (docs/appliance.md), all from the supervisor
-// thread: READY=1 once the trainer is armed-ready — the RT thread has run at least one cycle
-// (its settings applied, the device active) and the safety chain is armed (no latched fault;
-// with --no-arm, once it runs) — then WATCHDOG=1 while the loop is healthy (WatchdogHealth:
-// its cycle counter advanced since the last ping and no overrun fault is latched), STATUS= on
-// every change of that health, STOPPING=1 when the loop ends. Nothing is sent outside a unit.
-class ServiceSupervision {
- public:
-  ServiceSupervision(const RunOptions& options, const config::SceneConfig& scene)
-      : notifier_(appliance::ServiceNotifier::from_environment()),
-        watchdog_(notifier_.watchdog_usec()),
-        arm_(options.arm),
-        scene_name_(scene.name),
-        rate_hz_(1e9 / static_cast<double>(scene.loop.period_ns)) {}
-
-  void observe(const TelemetrySnapshot& snapshot) noexcept {
-    cycle_ = snapshot.cycle;
-    latched_faults_ = snapshot.latched_faults;
-  }
-
-  void tick(bool finished) {
-    if (!notifier_.active()) return;
-    if (!ready_) {
-      if (cycle_ == 0) return;
-      if (arm_ && latched_faults_ != 0) {
-        if (latched_faults_ != waiting_faults_) {
-          waiting_faults_ = latched_faults_;
-          notifier_.status("waiting to arm: latched faults 0x" + hex(latched_faults_));
-        }
-        return;
-      }
-      ready_ = true;
-      char text[160];
-      std::snprintf(text, sizeof text, "%s scene %s: loop at %.0f Hz",
-                    arm_ ? "armed" : "running unarmed", scene_name_.c_str(), rate_hz_);
-      notifier_.ready(text);
-    }
-    const bool overrun = (latched_faults_ & safety::bit(safety::Fault::overrun_streak)) != 0;
-    const auto now = std::chrono::steady_clock::now().time_since_epoch();
-    if (watchdog_.should_ping(std::chrono::duration_cast<std::chrono::nanoseconds>(now).count(),
-                              {cycle_, overrun, finished})) {
-      notifier_.watchdog();
-    }
-    if (watchdog_.health() != reported_health_ &&
-        watchdog_.health() != appliance::LoopHealth::not_started) {
-      reported_health_ = watchdog_.health();
-      notifier_.status("loop " + std::string(appliance::to_string(reported_health_)) +
-                       (reported_health_ == appliance::LoopHealth::healthy
-                            ? ""
-                            : ": watchdog pings stopped at cycle " + std::to_string(cycle_)));
-    }
-  }
-
-  void stopping(bool by_signal) {
-    notifier_.stopping(by_signal ? "stopping: signal received" : "stopping: run ended");
-  }
-
- private:
-  static std::string hex(std::uint32_t value) {
-    char text[16];
-    std::snprintf(text, sizeof text, "%x", value);
-    return text;
-  }
-
-  appliance::ServiceNotifier notifier_;
-  appliance::WatchdogHealth watchdog_;
-  bool arm_;
-  std::string scene_name_;
-  double rate_hz_;
-  std::uint64_t cycle_ = 0;
-  std::uint32_t latched_faults_ = 0;
-  std::uint32_t waiting_faults_ = 0;
-  bool ready_ = false;
-  appliance::LoopHealth reported_health_ = appliance::LoopHealth::healthy;
-};
-
 // The RT thread: RT settings, armed (heap use counted), the periodic loop, shutdown. The
 // calling (supervisor) thread drains the log and telemetry until it ends or a signal stops it.
 core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
@@ -328,7 +250,7 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
     finished.store(true, std::memory_order_release);
   });
   if (!thread) return std::move(thread).error();
-  ServiceSupervision service(options, scene);
+  ServiceSupervision service(options.arm, scene.name, scene.loop.period_ns);
   while (!finished.load(std::memory_order_acquire)) {
     if (signals.wait_for(kSupervisorPeriodNs) != 0) {
       result.stopped_by_signal = true;
@@ -339,7 +261,10 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
       service.observe(setup.telemetry->latest());
       if (options.on_telemetry) options.on_telemetry(setup.telemetry->latest());
     }
-    service.tick(finished.load(std::memory_order_acquire));
+    service.tick(finished.load(std::memory_order_acquire),
+                 std::chrono::duration_cast<std::chrono::nanoseconds>(
+                     std::chrono::steady_clock::now().time_since_epoch())
+                     .count());
   }
   service.stopping(result.stopped_by_signal);
   thread->join();
