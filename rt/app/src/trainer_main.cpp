@@ -15,17 +15,23 @@
 
 namespace {
 
-// DIR/<scene>-<YYYYmmddTHHMMSSZ>.json for a run started at `started`, with -2, -3, ... when a
-// run of the same scene started in the same second already wrote one. Creates DIR.
-trainer::core::Expected<std::filesystem::path> trainer_report_path(const std::filesystem::path& dir,
-                                                                   const std::string& scene,
-                                                                   std::time_t started) {
+// Creates the report directory before the run, so that a session never runs without a place
+// for its record.
+trainer::core::Expected<void> make_report_dir(const std::filesystem::path& dir) {
   std::error_code error;
   std::filesystem::create_directories(dir, error);
   if (error) {
     return trainer::core::make_error("--report-dir " + dir.string() +
                                      ": cannot create it: " + error.message());
   }
+  return {};
+}
+
+// DIR/<scene>-<YYYYmmddTHHMMSSZ>.json for a run started at `started`, with -2, -3, ... when a
+// run of the same scene started in the same second already wrote one.
+std::filesystem::path trainer_report_path(const std::filesystem::path& dir,
+                                          const std::string& scene, std::time_t started) {
+  std::error_code error;
   std::tm utc{};
   gmtime_r(&started, &utc);
   char stamp[32];
@@ -169,6 +175,12 @@ int main(int argc, char** argv) {
     return trainer::appliance::rt_check_failed(results) ? 1 : 0;
   }
 
+  if (!report_dir.empty()) {
+    if (auto made = make_report_dir(report_dir); !made) {
+      std::cerr << "trainer: " << made.error().message << "\n";
+      return 1;
+    }
+  }
   const std::time_t started = std::time(nullptr);
   auto result = trainer::app::run_trainer(options);
   if (!result) {
@@ -177,12 +189,7 @@ int main(int argc, char** argv) {
   }
   std::cout << trainer::app::report_summary(*result);
   if (!report_dir.empty()) {
-    auto path = trainer_report_path(report_dir, result->scene_name, started);
-    if (!path) {
-      std::cerr << "trainer: " << path.error().message << "\n";
-      return 1;
-    }
-    report_file = path->string();
+    report_file = trainer_report_path(report_dir, result->scene_name, started).string();
   }
   if (!report_file.empty()) {
     std::ofstream out(report_file);
