@@ -80,6 +80,7 @@ class EdgeLatch : public ::testing::Test {
     std::uint32_t levels = 0;
     EXPECT_EQ(device_->read_digital_inputs(levels), hal::ReturnCode::ok);
     LatchRead read;
+    read.start_ns = t;
     read.done_ns = t + 50 * kUs;
     read.reported_active = (((levels >> index) & 1U) != 0) == interest_when_set;
     if (device_->stats().changed_reads[index] != before) {
@@ -157,6 +158,38 @@ TEST_F(EdgeLatch, LevelReadBeforeTheKernelQueuedTheEdge) {
   EXPECT_EQ(t.latch_ns, 2050 * kUs);
   EXPECT_EQ(t.edge_ns, 1800 * kUs);
   EXPECT_EQ(t.edge_to_latch_ns(), 250 * kUs);
+  EXPECT_FALSE(t.missed_by_a_read);
+}
+
+TEST_F(EdgeLatch, PulseWhoseEventCameAfterAReadIsCountedAsMissedByARead) {
+  meter_.on_read(read_at(1 * kMs));
+  meter_.arm(1100 * kUs);
+  // A pulse at 1.5 ms, over before the 2 ms read, its event queued only after that read.
+  EXPECT_FALSE(meter_.on_read(read_at(2 * kMs)));
+  lines_.events[0].push_back(1500 * kUs);
+  ASSERT_TRUE(meter_.on_read(read_at(3 * kMs)));
+  EXPECT_TRUE(meter_.trial().missed_by_a_read);
+  EXPECT_EQ(meter_.trial().edge_to_latch_ns(), 1550 * kUs);
+  const LatchSummary s = summarize_latches({meter_.trial()}, 1500 * kUs, 1 * kMs);
+  EXPECT_EQ(s.missed_by_a_read, 1U);
+  EXPECT_EQ(s.late_reader, 0U);
+  EXPECT_EQ(s.over_limit, 1U);
+}
+
+TEST_F(EdgeLatch, ReaderThatRanLateIsToldApart) {
+  meter_.on_read(read_at(1 * kMs));
+  meter_.arm(1100 * kUs);
+  lines_.edge(0, true, 1200 * kUs);
+  // The reader was descheduled: its next read begins at 3.5 ms.
+  ASSERT_TRUE(meter_.on_read(read_at(3500 * kUs)));
+  EXPECT_FALSE(meter_.trial().missed_by_a_read);
+  const LatchSummary s = summarize_latches({meter_.trial()}, 1500 * kUs, 1 * kMs);
+  EXPECT_EQ(s.late_reader, 1U);
+  EXPECT_EQ(s.missed_by_a_read, 0U);
+  StepResult step = judge_edge_to_latch("id", "t", {meter_.trial()}, 1, kMs, 1500 * kUs);
+  EXPECT_EQ(step.outcome, Outcome::fail);
+  EXPECT_NE(step.reason.find("(reader late) in 1, a read after the edge missed it (event queued "
+                             "late) in 0"), std::string::npos) << step.reason;
 }
 
 TEST_F(EdgeLatch, ReportedWithoutAnyEdgeGivesUpAfterFiftyReads) {
@@ -206,7 +239,7 @@ TEST(EdgeLatchVerdict, PassFailAndTheNumbers) {
                                         1500 * kUs);
   EXPECT_EQ(pass.outcome, Outcome::pass) << pass.reason;
   EXPECT_EQ(pass.reason,
-            "every press latched within the limit: p50 0.80 ms, p90 0.80 ms, p99 0.80 ms, max "
+            "every trial latched within the limit: p50 0.80 ms, p90 0.80 ms, p99 0.80 ms, max "
             "0.80 ms over 5 trial(s); limit 1.50 ms (period 1.00 ms + margin)");
   EXPECT_EQ(pass.details["trials"].size(), 5U);
   EXPECT_EQ(pass.figures[1].name, "p50");

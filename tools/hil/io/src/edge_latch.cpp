@@ -37,6 +37,7 @@ std::int64_t edge_latch_rank(const std::vector<std::int64_t>& sorted, double q) 
 void EdgeLatchMeter::arm(std::int64_t now_ns) {
   armed_ = true;
   latched_ = false;
+  unreported_start_ns_ = 0;
   arm_ns_ = now_ns;
   trial_ = LatchTrial{};
 }
@@ -48,7 +49,10 @@ bool EdgeLatchMeter::on_read(const LatchRead& read) {
   ++trial_.reads;
   const bool fresh_event = read.event_ns != 0 && read.event_ns >= arm_ns_;
   if (!latched_) {
-    if (!read.reported_active) return false;
+    if (!read.reported_active) {
+      unreported_start_ns_ = read.start_ns;
+      return false;
+    }
     if (read.event_ns != 0 && !fresh_event) {
       // Reported because of an event from before the arming (the previous release, queued
       // late): not this press.
@@ -57,17 +61,16 @@ bool EdgeLatchMeter::on_read(const LatchRead& read) {
     }
     latched_ = true;
     trial_.latch_ns = read.done_ns;
+    trial_.latch_read_start_ns = read.start_ns;
     if (fresh_event) {
-      trial_.edge_ns = read.event_ns;
-      armed_ = false;
+      complete(read.event_ns);
       return true;
     }
     trial_.level_before_event = true;
     return false;
   }
   if (fresh_event) {
-    trial_.edge_ns = read.event_ns;
-    armed_ = false;
+    complete(read.event_ns);
     return true;
   }
   if (trial_.reads > kEdgeLagReads) {  // reported, but the kernel never queued an edge
@@ -77,11 +80,24 @@ bool EdgeLatchMeter::on_read(const LatchRead& read) {
   return false;
 }
 
-LatchSummary summarize_latches(const std::vector<LatchTrial>& trials, std::int64_t limit_ns) {
+void EdgeLatchMeter::complete(std::int64_t edge_ns) {
+  trial_.edge_ns = edge_ns;
+  trial_.missed_by_a_read = unreported_start_ns_ != 0 && unreported_start_ns_ > edge_ns;
+  armed_ = false;
+}
+
+LatchSummary summarize_latches(const std::vector<LatchTrial>& trials, std::int64_t limit_ns,
+                               std::int64_t period_ns) {
   LatchSummary summary;
   std::vector<std::int64_t> values;
   for (const LatchTrial& trial : trials) {
     if (trial.level_before_event) ++summary.level_before_event;
+    if (trial.missed_by_a_read) ++summary.missed_by_a_read;
+    if (period_ns > 0 && !trial.missed_by_a_read && trial.edge_ns != 0 &&
+        trial.latch_read_start_ns != 0 &&
+        trial.latch_read_start_ns - trial.edge_ns > period_ns) {
+      ++summary.late_reader;
+    }
     if (trial.edge_ns == 0) {
       ++summary.over_limit;  // no edge timestamp: cannot be shown within the limit
       continue;
@@ -106,7 +122,7 @@ StepResult judge_edge_to_latch(const std::string& id, const std::string& title,
   StepResult step;
   step.id = id;
   step.title = title;
-  const LatchSummary s = summarize_latches(trials, limit_ns);
+  const LatchSummary s = summarize_latches(trials, limit_ns, period_ns);
   step.figures = {{"trials", static_cast<double>(s.trials), "presses"},
                   {"p50", edge_latch_ms(s.p50_ns), "ms"},
                   {"p90", edge_latch_ms(s.p90_ns), "ms"},
@@ -117,12 +133,17 @@ StepResult judge_edge_to_latch(const std::string& id, const std::string& title,
   nlohmann::json samples = nlohmann::json::array();
   for (const LatchTrial& t : trials) {
     samples.push_back({{"edge_to_latch_us", t.edge_ns == 0 ? -1 : t.edge_to_latch_ns() / 1000},
+                       {"latch_read_start_after_edge_us",
+                        t.edge_ns == 0 ? -1 : (t.latch_read_start_ns - t.edge_ns) / 1000},
                        {"reads", t.reads},
-                       {"level_before_event", t.level_before_event}});
+                       {"level_before_event", t.level_before_event},
+                       {"missed_by_a_read", t.missed_by_a_read}});
   }
   step.details = {{"trials", samples},
                   {"over_limit", s.over_limit},
                   {"level_before_event", s.level_before_event},
+                  {"missed_by_a_read", s.missed_by_a_read},
+                  {"late_reader", s.late_reader},
                   {"min_ms", edge_latch_ms(s.min_ns)}};
   const std::string numbers = "p50 " + edge_latch_fmt(edge_latch_ms(s.p50_ns)) + " ms, p90 " +
                               edge_latch_fmt(edge_latch_ms(s.p90_ns)) + " ms, p99 " +
@@ -139,7 +160,10 @@ StepResult judge_edge_to_latch(const std::string& id, const std::string& title,
   if (s.over_limit > 0) {
     step.outcome = Outcome::fail;
     step.reason = std::to_string(s.over_limit) + " of " + std::to_string(s.trials) +
-                  " latched later than the limit (or without a kernel edge): " + numbers;
+                  " latched later than the limit (or without a kernel edge): " + numbers +
+                  "; the reporting read began over a period after the edge (reader late) in " +
+                  std::to_string(s.late_reader) + ", a read after the edge missed it (event "
+                  "queued late) in " + std::to_string(s.missed_by_a_read);
     return step;
   }
   if (trials.size() < wanted) {
@@ -149,7 +173,7 @@ StepResult judge_edge_to_latch(const std::string& id, const std::string& title,
     return step;
   }
   step.outcome = Outcome::pass;
-  step.reason = "every press latched within the limit: " + numbers;
+  step.reason = "every trial latched within the limit: " + numbers;
   return step;
 }
 

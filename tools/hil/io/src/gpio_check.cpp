@@ -103,6 +103,7 @@ void gpio_check_reader(hal::gpiod::GpioDevice& device, ReaderShared& shared,
     const std::size_t index = shared.input_index.load(std::memory_order_relaxed);
     const std::uint64_t changed_before = device.stats().changed_reads[index];
     std::uint32_t levels = 0;
+    const std::int64_t start = gpio_check_now_ns();
     const hal::ReturnCode rc = device.read_digital_inputs(levels);
     const std::int64_t done = gpio_check_now_ns();
     shared.reads.fetch_add(1, std::memory_order_relaxed);
@@ -114,6 +115,7 @@ void gpio_check_reader(hal::gpiod::GpioDevice& device, ReaderShared& shared,
     }
     const bool set = (levels >> static_cast<unsigned>(shared.bit.load(std::memory_order_relaxed))) & 1U;
     LatchRead read;
+    read.start_ns = start;
     read.done_ns = done;
     read.reported_active = set == shared.interest_when_set.load(std::memory_order_relaxed);
     if (device.stats().changed_reads[index] != changed_before) {

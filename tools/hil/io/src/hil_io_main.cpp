@@ -4,6 +4,7 @@
 //
 //   hil_io scan|check [--device FILE] [--part gpio|usb|all] [--yes] [--act CMD] [--json]
 //                     [--slow-motion N] [--trials N] [--action-timeout S] [--period-ms X]
+//                     [--exchanges N]
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -92,6 +93,7 @@ int main(int argc, char** argv) {
   int trials = 0;
   double action_timeout = 10.0;
   double period_ms = 0.0;
+  std::int64_t exchanges = 1000;
   auto add_common = [&](CLI::App* sub) {
     sub->add_option("--device", device_file, "device file (config/devices/*.toml)");
     sub->add_option("--part", part, "gpio, usb or all")->check(CLI::IsMember({"gpio", "usb", "all"}));
@@ -107,6 +109,8 @@ int main(int argc, char** argv) {
     sub->add_option("--period-ms", period_ms,
                     "read period of the GPIO check (default 1 ms x slow motion)")
         ->check(CLI::Range(0.0, 1000.0));
+    sub->add_option("--exchanges", exchanges, "USB round-trip exchanges (default 1000)")
+        ->check(CLI::Range(std::int64_t{10}, std::int64_t{10'000'000}));
   };
   CLI::App* scan = app.add_subcommand("scan", "what is on the bench, compared with the device file");
   CLI::App* check = app.add_subcommand("check", "the GPIO and USB check steps");
@@ -129,11 +133,13 @@ int main(int argc, char** argv) {
     bench.device = std::move(*loaded);
   }
   const bool gpio = part == "gpio" || part == "all";
+  const bool usb = part == "usb" || part == "all";
   nlohmann::json out = nlohmann::json::array();
   bool failed = false;
   if (scan->parsed()) {
     std::vector<trainer::hil::ScanSection> sections;
     if (gpio) sections.push_back(trainer::hil::scan_gpio(bench));
+    if (usb) sections.push_back(trainer::hil::scan_usb(bench));
     for (const auto& s : sections) {
       failed = failed || any_failed(s.comparison);
       if (json) {
@@ -145,8 +151,11 @@ int main(int argc, char** argv) {
   } else {
     trainer::hil::GpioCheckOptions options;
     options.period_ns = static_cast<std::int64_t>(period_ms * 1e6);
+    trainer::hil::UsbCheckOptions usb_options;
+    usb_options.exchanges = exchanges;
     std::vector<trainer::hil::CheckSection> sections;
     if (gpio) sections.push_back(trainer::hil::check_gpio(bench, options));
+    if (usb) sections.push_back(trainer::hil::check_usb(bench, usb_options));
     for (const auto& s : sections) {
       failed = failed || any_failed(s.steps);
       if (json) {

@@ -75,6 +75,7 @@ ScanSection make_gpio_scan_section(const std::vector<GpioChipInfo>& chips,
 // reported the input active (GpioDevice's latched level), and the kernel timestamp of the
 // oldest edge event that read drained (0 = none).
 struct LatchRead {
+  std::int64_t start_ns = 0;  // when the read began (0 = unknown)
   std::int64_t done_ns = 0;
   bool reported_active = false;
   std::int64_t event_ns = 0;
@@ -87,6 +88,11 @@ struct LatchTrial {
   // The read reported the level before any event of the press was drained: the edge's
   // timestamp came from a later read (the kernel's IRQ thread ran after the read).
   bool level_before_event = false;
+  // A read that began after the edge did not report it: the press was seen one read late
+  // (its event was queued after that read: the kernel's IRQ thread ran late).
+  bool missed_by_a_read = false;
+  // The read that reported it began more than a period after the edge: the reader was late.
+  std::int64_t latch_read_start_ns = 0;
   std::int64_t edge_to_latch_ns() const { return latch_ns - edge_ns; }
 };
 
@@ -113,6 +119,8 @@ class EdgeLatchMeter {
   std::int64_t arm_ns_ = 0;
   std::int64_t inactive_streak_ = 0;
   std::int64_t stale_reports_ = 0;
+  std::int64_t unreported_start_ns_ = 0;  // the last armed read that did not report the press
+  void complete(std::int64_t edge_ns);
   bool last_active_ = false;
   LatchTrial trial_;
 };
@@ -122,15 +130,67 @@ struct LatchSummary {
   std::int64_t p50_ns = 0, p90_ns = 0, p99_ns = 0, max_ns = 0, min_ns = 0;
   std::size_t over_limit = 0;
   std::size_t level_before_event = 0;
+  std::size_t missed_by_a_read = 0;   // see LatchTrial
+  std::size_t late_reader = 0;        // latching read began > one period after the edge
 };
 // Percentiles by nearest rank over the trials' edge-to-latch times.
-LatchSummary summarize_latches(const std::vector<LatchTrial>& trials, std::int64_t limit_ns);
+LatchSummary summarize_latches(const std::vector<LatchTrial>& trials, std::int64_t limit_ns,
+                               std::int64_t period_ns = 0);
 
 // The step's verdict: pass when every trial latched within `limit_ns`; `wanted` trials were
 // asked for (fewer = some were not pressed in time: fail naming the line).
 StepResult judge_edge_to_latch(const std::string& id, const std::string& title,
                                const std::vector<LatchTrial>& trials, std::size_t wanted,
                                std::int64_t period_ns, std::int64_t limit_ns);
+
+// ---------------------------------------------------------------- USB listing and comparison
+struct UsbIdentity {  // the protocol's GET_IDENTITY answer (hal/usbproto Identity)
+  unsigned protocol_version = 0;
+  unsigned firmware_version = 0;  // major << 8 | minor
+  unsigned channel_count = 0;
+  unsigned watchdog_ms = 0;
+  unsigned frame_interval_us = 0;
+  unsigned max_current_ma = 0;
+};
+
+struct UsbFoundDevice {
+  std::uint16_t vendor_id = 0;
+  std::uint16_t product_id = 0;
+  unsigned bus = 0;
+  unsigned address = 0;
+  std::string serial;
+  int vendor_interface = -1;   // first vendor-specific (0xFF) interface, -1 = none
+  bool protocol_ids = false;   // the VID:PID asked for (the protocol's or the device file's)
+  std::optional<UsbIdentity> identity;  // asked of protocol_ids devices only
+  std::string error;           // why the identity (or the serial) could not be read
+};
+
+// The devices with that VID:PID (identity asked) and every other device with a vendor-specific
+// interface (listed only: a vendor request means something else to another vendor's device).
+std::vector<UsbFoundDevice> list_usb_devices(std::uint16_t vendor_id, std::uint16_t product_id,
+                                             std::string* error = nullptr);
+
+// usb.scan.device (missing, ambiguous, no identity), usb.scan.protocol_version,
+// usb.scan.firmware_version, usb.scan.channels (device vs instruments x 5), usb.scan.extra.<serial>.
+std::vector<StepResult> compare_usb(const std::vector<UsbFoundDevice>& found,
+                                    const config::DeviceConfig& device);
+ScanSection make_usb_scan_section(const std::vector<UsbFoundDevice>& found,
+                                  const std::optional<config::DeviceConfig>& device);
+
+// The options of the USB checks that BenchContext does not carry.
+struct UsbCheckOptions {
+  std::int64_t exchanges = 1000;  // round-trip step
+  std::int64_t period_ns = 0;     // loop period (device time); 0 = 1 ms
+};
+CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options);
+
+// A channel's torque pulse: + effort must move the encoder + by at least min_counts.
+StepResult judge_polarity(const std::string& channel, std::int64_t delta_counts,
+                          std::int64_t min_counts, double effort, const std::string& unit);
+// The device watchdog: currents dropped (the trip report seen) `trip_ns` after the last OUT
+// report (-1 = never within the wait); pass within [0.9 x watchdog, limit].
+StepResult judge_watchdog(std::int64_t trip_ns, std::int64_t watchdog_ns, std::int64_t limit_ns,
+                          std::int64_t waited_ns, std::int64_t slow_motion);
 
 // ---------------------------------------------------------------- output
 // One line per step / item for people; the sections as JSON.
