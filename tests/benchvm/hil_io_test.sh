@@ -4,7 +4,10 @@
 #  - a good bench: scan passes every [gpio] line; check passes the e-stop and enable
 #    edge-to-latch steps over TRIALS presses each and reads the outputs back;
 #  - a device file naming a line the chip lacks: scan fails that line, naming it;
-#  - a dead e-stop line: check fails gpio.estop.edge_to_latch with "no edge on ... check wiring".
+#  - a dead e-stop line: check fails gpio.estop.edge_to_latch with "no edge on ... check wiring" (2 s timeout);
+#  - USB: usbgadget on dummy_hcd: scan finds it with the device file's identity, check passes the
+#    round trip (200 exchanges, x8), a torque pulse per channel and the watchdog; a device file
+#    naming another serial fails the scan (missing + extra).
 #   hil_io_test.sh SOURCE_DIR BIN_DIR [TRIALS] [SLOW_MOTION] [OUT_DIR]
 # TRIALS >= 100 with OUT_DIR is the documented distribution run (docs/hil-io.md):
 #   tests/benchvm/hil_io_test.sh . build/release/bin 100 16 /tmp/hil-io-trials
@@ -17,6 +20,9 @@ cd "$src"
 status=0
 only=
 [ "$trials" -lt 100 ] || only=gpio-only
+for program in "$bin/hil_io" "$bin/usbgadget"; do
+  [ -x "$program" ] || { echo "hil_io_test: $program missing: build hil_io and usbgadget" >&2; exit 1; }
+done
 tools/benchvm/benchvm run --gpio-sim --smp 2 --timeout 600 --out "$work" -- \
   tests/benchvm/hil_io.sh "$bin" "$trials" "$slow" $only || status=$?
 [ "$status" -ne 77 ] || exit 77
@@ -72,9 +78,31 @@ if not only:
     st = steps.get("gpio.estop.edge_to_latch", {})
     check("dead e-stop: gpio.estop.edge_to_latch fails with the wiring reason",
           st.get("outcome") == "fail" and st.get("reason", "").startswith("no edge on gpiochip")
-          and ":0 (estop) within 3 s — check wiring (trial 1 of 2)" in st.get("reason", ""))
+          and ":0 (estop) within 2 s — check wiring (trial 1 of 2)" in st.get("reason", ""))
     check("dead e-stop: the enable step still passes",
           steps.get("gpio.enable.edge_to_latch", {}).get("outcome") == "pass")
+    status, steps = load("usb_scan")
+    check("usb: scan exits 0", status == 0)
+    for sid in ("usb.scan.device", "usb.scan.protocol_version", "usb.scan.firmware_version",
+                "usb.scan.channels"):
+        check(f"usb: {sid} passes", steps.get(sid, {}).get("outcome") == "pass")
+    status, steps = load("usb_check")
+    check("usb: check exits 0", status == 0)
+    check("usb: usb.round_trip passes", steps.get("usb.round_trip", {}).get("outcome") == "pass")
+    polarity = [s for sid, s in steps.items() if sid.endswith(".polarity")]
+    check("usb: 10 channels' polarity pass",
+          len(polarity) == 10 and all(s["outcome"] == "pass" for s in polarity))
+    check("usb: usb.watchdog passes", steps.get("usb.watchdog", {}).get("outcome") == "pass")
+    for sid in ("usb.round_trip", "usb.watchdog"):
+        fig = {f["name"]: f["value"] for f in steps.get(sid, {}).get("figures", [])}
+        print(f"FIGURES {sid}: {fig}")
+    status, steps = load("usb_scan_other_serial")
+    check("usb, another serial in the file: scan exits 1", status == 1)
+    check("usb, another serial: usb.scan.device fails as missing",
+          steps.get("usb.scan.device", {}).get("reason", "").startswith(
+              "no USB device 1209:0001 serial 'bench-0002'"))
+    check("usb, another serial: the gadget is an extra",
+          steps.get("usb.scan.extra.usbgadget-0001", {}).get("outcome") == "fail")
 sys.exit(1 if failures else 0)
 PY
 echo PASS

@@ -174,6 +174,10 @@ TEST_F(EdgeLatch, PulseWhoseEventCameAfterAReadIsCountedAsMissedByARead) {
   EXPECT_EQ(s.missed_by_a_read, 1U);
   EXPECT_EQ(s.late_reader, 0U);
   EXPECT_EQ(s.over_limit, 1U);
+  // Within the time limit it still fails: the first read after the edge did not report it.
+  const StepResult step = judge_edge_to_latch("id", "t", {meter_.trial()}, 1, kMs, 5 * kMs);
+  EXPECT_EQ(step.outcome, Outcome::fail);
+  EXPECT_EQ(step.reason.rfind("1 of 1 reported only by a later read", 0), 0U) << step.reason;
 }
 
 TEST_F(EdgeLatch, ReaderThatRanLateIsToldApart) {

@@ -4,7 +4,7 @@
 //
 //   hil_io scan|check [--device FILE] [--part gpio|usb|all] [--yes] [--act CMD] [--json]
 //                     [--slow-motion N] [--trials N] [--action-timeout S] [--period-ms X]
-//                     [--exchanges N]
+//                     [--latch-margin-ms X] [--exchanges N]
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -94,6 +94,7 @@ int main(int argc, char** argv) {
   double action_timeout = 10.0;
   double period_ms = 0.0;
   std::int64_t exchanges = 1000;
+  double latch_margin_ms = -1.0;
   auto add_common = [&](CLI::App* sub) {
     sub->add_option("--device", device_file, "device file (config/devices/*.toml)");
     sub->add_option("--part", part, "gpio, usb or all")->check(CLI::IsMember({"gpio", "usb", "all"}));
@@ -109,6 +110,9 @@ int main(int argc, char** argv) {
     sub->add_option("--period-ms", period_ms,
                     "read period of the GPIO check (default 1 ms x slow motion)")
         ->check(CLI::Range(0.0, 1000.0));
+    sub->add_option("--latch-margin-ms", latch_margin_ms,
+                    "edge-to-latch limit = period + this (default half a period)")
+        ->check(CLI::Range(0.0, 10000.0));
     sub->add_option("--exchanges", exchanges, "USB round-trip exchanges (default 1000)")
         ->check(CLI::Range(std::int64_t{10}, std::int64_t{10'000'000}));
   };
@@ -151,6 +155,7 @@ int main(int argc, char** argv) {
   } else {
     trainer::hil::GpioCheckOptions options;
     options.period_ns = static_cast<std::int64_t>(period_ms * 1e6);
+    if (latch_margin_ms >= 0.0) options.margin_ns = static_cast<std::int64_t>(latch_margin_ms * 1e6);
     trainer::hil::UsbCheckOptions usb_options;
     usb_options.exchanges = exchanges;
     std::vector<trainer::hil::CheckSection> sections;
