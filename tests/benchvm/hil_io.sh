@@ -14,7 +14,7 @@
 #     (missing, and the gadget an extra).
 # Writes $BENCHVM_OUT/<case>.{json,txt,status}.
 set -uo pipefail
-bin=$1 trials=$2 slow=$3 only=${4:-} usb_slow=${4:-8} exchanges=${5:-200}
+bin=$1 trials=$2 slow=$3 only=${4:-} usb_slow=${4:-16} exchanges=${5:-200}
 # Under TCG on a shared host the emulated reader is descheduled for tens of ms now and then
 # (docs/hil-io.md): CI's edge-to-latch limit is 4 periods; that the first read after each edge
 # reported it is judged strictly. The >= 100-trial run (gpio-only) keeps the default margin.
@@ -22,6 +22,8 @@ margin=()
 [ "$only" = gpio-only ] || margin=(--latch-margin-ms $((4 * slow)))
 out=${BENCHVM_OUT:?run me through benchvm run}
 device=config/devices/gpio_sim_bench.toml
+mark() { echo "at $(cut -d' ' -f1 /proc/uptime) s (guest uptime): $*"; }
+mark "start"
 chip=$(tests/benchvm/gpio_sim_chip.sh create trainer trainer-bench estop enable drive_enable \
   fault_lamp spare) || { echo "FAIL: cannot create the gpio-sim chip"; exit 1; }
 export HIL_SIM_BASE=/sys/devices/platform/$(cat /sys/kernel/config/gpio-sim/trainer/dev_name)/$chip
@@ -33,6 +35,7 @@ run() {  # NAME ARGS...: hil_io ARGS --json to NAME.json, stderr to NAME.txt, st
   echo $? >"$out/$name.status"
   echo "$name: exit $(cat "$out/$name.status") after $(( (${EPOCHREALTIME/./} - ${t0/./}) / 1000 )) ms"
 }
+mark "gpio-sim chip created"
 run gpio_scan scan --part gpio --device "$device"
 run gpio_check check --part gpio --device "$device" --yes --act "tests/benchvm/hil_io_act.sh good" \
   --slow-motion "$slow" --trials "$trials" "${margin[@]}"
@@ -40,16 +43,18 @@ run gpio_check check --part gpio --device "$device" --yes --act "tests/benchvm/h
 sed 's/^line = "fault_lamp"/line = "fault_lmp"/' "$device" >"$out/miswired.toml"
 run gpio_scan_miswired scan --part gpio --device "$out/miswired.toml"
 run gpio_check_dead check --part gpio --device "$device" --yes \
-  --act "tests/benchvm/hil_io_act.sh dead" --slow-motion "$slow" --trials 2 --action-timeout 2 \
+  --act "tests/benchvm/hil_io_act.sh dead" --slow-motion "$slow" --trials 1 --action-timeout 2 \
   "${margin[@]}"
 
 # --- USB
+mark "GPIO cases done"
 usb_device=config/devices/usb_benchvm.toml
 if ! tools/benchvm/usb-gadget-modules >"$out/modules.txt" 2>&1; then
   echo "FAIL: the USB gadget modules did not load"
   cat "$out/modules.txt"
   exit 10
 fi
+mark "gadget modules loaded"
 chrt -f 50 "$bin/usbgadget" --scene config/scenes/wall.toml --device "$usb_device" \
   --script builtin:hold --period-us 1000 --slow-motion "$usb_slow" >"$out/usbgadget.txt" 2>&1 &
 gadget=$!
@@ -70,6 +75,7 @@ if [ "$enumerated" != 1 ]; then
   kill -INT "$gadget" 2>/dev/null
   exit 10
 fi
+mark "gadget enumerated"
 run usb_scan scan --part usb --device "$usb_device"
 run usb_check check --part usb --device "$usb_device" --yes --slow-motion "$usb_slow" \
   --exchanges "$exchanges"
@@ -78,4 +84,5 @@ run usb_scan_other_serial scan --part usb --device "$out/usb_other_serial.toml"
 kill -INT "$gadget" 2>/dev/null
 wait "$gadget"
 tail -n 4 "$out/usbgadget.txt"
+mark "done"
 exit 0

@@ -6,7 +6,7 @@
 #  - a device file naming a line the chip lacks: scan fails that line, naming it;
 #  - a dead e-stop line: check fails gpio.estop.edge_to_latch with "no edge on ... check wiring" (2 s timeout);
 #  - USB: usbgadget on dummy_hcd: scan finds it with the device file's identity, check passes the
-#    round trip (200 exchanges, x8), a torque pulse per channel and the watchdog; a device file
+#    round trip (200 exchanges, x16), a torque pulse per channel and the watchdog; a device file
 #    naming another serial fails the scan (missing + extra).
 #   hil_io_test.sh SOURCE_DIR BIN_DIR [TRIALS] [SLOW_MOTION] [OUT_DIR]
 # TRIALS >= 100 with OUT_DIR is the documented distribution run (docs/hil-io.md):
@@ -78,7 +78,7 @@ if not only:
     st = steps.get("gpio.estop.edge_to_latch", {})
     check("dead e-stop: gpio.estop.edge_to_latch fails with the wiring reason",
           st.get("outcome") == "fail" and st.get("reason", "").startswith("no edge on gpiochip")
-          and ":0 (estop) within 2 s — check wiring (trial 1 of 2)" in st.get("reason", ""))
+          and ":0 (estop) within 2 s — check wiring (trial 1 of 1)" in st.get("reason", ""))
     check("dead e-stop: the enable step still passes",
           steps.get("gpio.enable.edge_to_latch", {}).get("outcome") == "pass")
     status, steps = load("usb_scan")

@@ -34,6 +34,7 @@ nlohmann::json hil_report_step_json(const StepResult& step) {
 
 std::string format_scan(const ScanSection& section) {
   std::string out;
+  if (section.found.empty()) out += section.part + ": nothing found\n";
   for (const ScanItem& item : section.found) {
     std::string props;
     for (const auto& [key, value] : item.properties.items()) {

@@ -263,8 +263,8 @@ CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options
     device.deactivate();
     return section;
   }
-  // The pulse lasts ~20 ms of the device's plant time (its frame interval per exchange), as
-  // long again to come back.
+  // The pulse lasts ~20 ms of the device's plant time (its frame interval per exchange), then a
+  // quarter of that at zero (each channel's motion is measured on that channel alone).
   const std::int64_t pulse_cycles =
       std::clamp<std::int64_t>(20'000 / std::max<std::int64_t>(1, frame_interval_us), 10, 300);
   for (auto& c : commands) {
@@ -282,8 +282,8 @@ CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options
                                           commands);
     const std::int64_t after = samples[ch].counts;
     commands[ch].effort = 0.0F;
-    running = running && usb_check_cycles(device, clock, period_ns, deadline, pulse_cycles, samples,
-                                          commands);
+    running = running && usb_check_cycles(device, clock, period_ns, deadline, pulse_cycles / 4,
+                                          samples, commands);
     if (!running) {
       section.steps.push_back(usb_check_failed("usb." + channel.channel_name + ".polarity",
                                                channel.channel_name + ": torque pulse",
