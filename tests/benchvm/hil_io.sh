@@ -16,8 +16,8 @@
 set -uo pipefail
 bin=$1 trials=$2 slow=$3 only=${4:-} usb_slow=${4:-16} exchanges=${5:-200}
 # Under TCG on a shared host the emulated reader is descheduled for tens of ms now and then
-# (docs/hil-io.md): CI's edge-to-latch limit is 4 periods; that the first read after each edge
-# reported it is judged strictly. The >= 100-trial run (gpio-only) keeps the default margin.
+# (docs/hil-io.md): CI's edge-to-latch limit is 4 periods. The >= 100-trial run (gpio-only)
+# keeps the default margin (half a period).
 margin=()
 [ "$only" = gpio-only ] || margin=(--latch-margin-ms $((4 * slow)))
 out=${BENCHVM_OUT:?run me through benchvm run}

@@ -140,3 +140,104 @@ TEST(UsbVerdicts, Watchdog) {
 
 }  // namespace
 }  // namespace trainer::hil
+
+namespace trainer::hil {
+namespace {
+
+namespace proto = trainer::hal::usbproto;
+
+// The round-trip verdict over the backend's own per-cycle logic (UsbFrameLogic) driven with
+// hand-made IN reports, as UsbDevice feeds it: answered cycles, then a device that stops
+// answering for a run of cycles.
+class RoundTripVerdict : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    hal::JointScale scale;
+    scale.counts_per_rev = 4096;
+    scale.gear_ratio = 15.0;
+    scale.torque_constant_nm_per_a = 0.03;
+    scale.current_limit_a = 3.0;
+    scales_ = {scale};
+    ASSERT_TRUE(logic_.configure(scales_, 1000).has_value());
+  }
+
+  // One cycle: the answer to the previous OUT report (or none), then the next OUT report.
+  void cycle(bool answered) {
+    if (answered) {
+      proto::InReport report;
+      report.sequence = ++in_sequence_;
+      report.out_sequence_applied = logic_.last_out_sequence();
+      report.channel_count = 1;
+      hal::libusb::RawInReport raw;
+      raw.length = static_cast<std::uint16_t>(proto::encode(report, raw.bytes));
+      now_ += 2'000'000;
+      raw.received_ns = now_;
+      raw.index = ++index_;
+      logic_.on_cycle(&raw);
+      now_ += 14'000'000;
+    } else {
+      logic_.on_cycle(nullptr);
+      now_ += 16'000'000;
+    }
+    hal::libusb::RawOutReport out;
+    const std::array<hal::ActuatorCommand, 1> commands{};
+    ASSERT_TRUE(logic_.build_out(commands, false, now_, out));
+  }
+
+  hal::libusb::UsbDiagnostics diagnostics() const {
+    hal::libusb::UsbDiagnostics d;
+    d.frames = logic_.counters();
+    const auto& h = logic_.round_trip();
+    d.round_trips = h.count();
+    d.round_trip_p50_ns = h.percentile_ns(0.50);
+    d.round_trip_p99_ns = h.percentile_ns(0.99);
+    d.round_trip_max_ns = h.max_ns();
+    return d;
+  }
+
+  std::vector<hal::JointScale> scales_;
+  hal::libusb::UsbFrameLogic logic_;
+  std::uint16_t in_sequence_ = 0;
+  std::uint64_t index_ = 0;
+  std::int64_t now_ = 0;
+};
+
+TEST_F(RoundTripVerdict, AnsweredCyclesPassAndAStaleRunAtTheFileLimitFails) {
+  for (int i = 0; i < 50; ++i) cycle(true);
+  cycle(false);
+  cycle(false);
+  for (int i = 0; i < 20; ++i) cycle(true);
+  auto d = diagnostics();
+  EXPECT_EQ(d.frames.stale_run_max, 2U);
+  EXPECT_GE(d.round_trips, 60U);
+  const StepResult pass = judge_round_trip(d, 72, 16'000'000, 5, "");
+  EXPECT_EQ(pass.outcome, Outcome::pass) << pass.reason;
+  EXPECT_NE(pass.reason.find("2 stale cycles; period 16.00 ms; longest stale run 2 < "
+                             "usb.stale_limit_cycles 5"), std::string::npos) << pass.reason;
+  for (int i = 0; i < 5; ++i) cycle(false);
+  cycle(true);
+  d = diagnostics();
+  const StepResult stalled = judge_round_trip(d, 78, 16'000'000, 5, "");
+  EXPECT_EQ(stalled.outcome, Outcome::fail);
+  EXPECT_EQ(stalled.reason.rfind("5 stale cycles in a row: the trainer would latch device_stopped "
+                                 "(usb.stale_limit_cycles = 5)", 0), 0U) << stalled.reason;
+}
+
+TEST_F(RoundTripVerdict, RefusedReportsFaultsAndTooFewRoundTripsFail) {
+  for (int i = 0; i < 20; ++i) cycle(true);
+  auto d = diagnostics();
+  hal::libusb::RawInReport garbage;
+  garbage.length = proto::kReportSize;  // all zero: bad magic
+  garbage.index = ++index_;
+  logic_.on_cycle(&garbage);
+  d = diagnostics();
+  EXPECT_EQ(d.frames.bad_reports, 1U);
+  EXPECT_EQ(judge_round_trip(d, 21, 16'000'000, 5, "").reason.rfind("1 IN reports refused, 0 transfer errors", 0), 0U);
+  d.frames.bad_reports = 0;
+  EXPECT_EQ(judge_round_trip(d, 21, 16'000'000, 5, "watchdog_tripped").reason.rfind(
+                "the device latched watchdog_tripped: ", 0), 0U);
+  EXPECT_EQ(judge_round_trip(d, 1000, 16'000'000, 5, "").reason.rfind("too few round trips measured", 0), 0U);
+}
+
+}  // namespace
+}  // namespace trainer::hil

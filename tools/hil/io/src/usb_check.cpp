@@ -126,6 +126,62 @@ StepResult judge_watchdog(std::int64_t trip_ns, std::int64_t watchdog_ns, std::i
   return step;
 }
 
+StepResult judge_round_trip(const hal::libusb::UsbDiagnostics& d, std::int64_t exchanges,
+                            std::int64_t real_period_ns, std::uint32_t stale_limit,
+                            const std::string& fault) {
+  StepResult step;
+  step.id = "usb.round_trip";
+  step.title = "round trip OUT -> device -> IN over " + std::to_string(exchanges) +
+               " exchanges";
+  const double real_period_ms = usb_check_ms(real_period_ns);
+  step.figures = {{"exchanges", static_cast<double>(exchanges), "cycles"},
+                  {"round_trips", static_cast<double>(d.round_trips), "reports"},
+                  {"p50", usb_check_ms(d.round_trip_p50_ns), "ms"},
+                  {"p99", usb_check_ms(d.round_trip_p99_ns), "ms"},
+                  {"max", usb_check_ms(d.round_trip_max_ns), "ms"},
+                  {"missed", static_cast<double>(d.frames.missed_frames), "frames"},
+                  {"stale", static_cast<double>(d.frames.stale_frames), "cycles"},
+                  {"stale_run_max", static_cast<double>(d.frames.stale_run_max), "cycles"},
+                  {"period", real_period_ms, "ms"}};
+  step.details = {{"bad_reports", d.frames.bad_reports},
+                  {"transfer_errors", d.transfer_errors},
+                  {"in_completed", d.in_completed},
+                  {"out_superseded", d.out_superseded},
+                  {"speed", d.speed},
+                  {"serial", d.serial}};
+  const std::string numbers =
+      "p50 " + usb_check_fmt(usb_check_ms(d.round_trip_p50_ns)) + " ms, p99 " +
+      usb_check_fmt(usb_check_ms(d.round_trip_p99_ns)) + " ms, max " +
+      usb_check_fmt(usb_check_ms(d.round_trip_max_ns)) + " ms over " +
+      std::to_string(d.round_trips) + " round trips; " + std::to_string(d.frames.missed_frames) +
+      " missed frames, " + std::to_string(d.frames.stale_frames) + " stale cycles; period " +
+      usb_check_fmt(real_period_ms) + " ms";
+  if (!fault.empty()) {
+    step.outcome = Outcome::fail;
+    step.reason = "the device latched " + fault + ": " + numbers;
+  } else if (d.frames.bad_reports > 0 || d.transfer_errors > 0) {
+    step.outcome = Outcome::fail;
+    step.reason = std::to_string(d.frames.bad_reports) + " IN reports refused, " +
+                  std::to_string(d.transfer_errors) + " transfer errors: " + numbers;
+  } else if (static_cast<std::int64_t>(d.round_trips) < exchanges / 10) {
+    step.outcome = Outcome::fail;
+    step.reason = "too few round trips measured: " + numbers;
+  } else if (d.frames.stale_run_max >= stale_limit) {
+    step.outcome = Outcome::fail;
+    step.reason = std::to_string(d.frames.stale_run_max) +
+                  " stale cycles in a row: the trainer would latch device_stopped (usb."
+                  "stale_limit_cycles = " + std::to_string(stale_limit) + "): " + numbers;
+  } else {
+    step.outcome = Outcome::pass;
+    step.reason = numbers + "; longest stale run " + std::to_string(d.frames.stale_run_max) +
+                  " < usb.stale_limit_cycles " + std::to_string(stale_limit);
+    if (usb_check_ms(d.round_trip_p99_ns) > real_period_ms) {
+      step.reason += " (p99 above a period: answers often come a cycle late)";
+    }
+  }
+  return step;
+}
+
 CheckSection check_usb(const BenchContext& bench) { return check_usb(bench, UsbCheckOptions{}); }
 
 CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options) {
@@ -187,56 +243,8 @@ CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options
     const bool ok = usb_check_cycles(device, clock, period_ns, deadline, options.exchanges, samples,
                                      commands);
     const hal::libusb::UsbDiagnostics d = device.diagnostics();
-    StepResult step;
-    step.id = "usb.round_trip";
-    step.title = "round trip OUT -> device -> IN over " + std::to_string(options.exchanges) +
-                 " exchanges";
-    const double real_period_ms = usb_check_ms(period_ns * slow);
-    step.figures = {{"exchanges", static_cast<double>(options.exchanges), "cycles"},
-                    {"round_trips", static_cast<double>(d.round_trips), "reports"},
-                    {"p50", usb_check_ms(d.round_trip_p50_ns), "ms"},
-                    {"p99", usb_check_ms(d.round_trip_p99_ns), "ms"},
-                    {"max", usb_check_ms(d.round_trip_max_ns), "ms"},
-                    {"missed", static_cast<double>(d.frames.missed_frames), "frames"},
-                    {"stale", static_cast<double>(d.frames.stale_frames), "cycles"},
-                    {"stale_run_max", static_cast<double>(d.frames.stale_run_max), "cycles"},
-                    {"period", real_period_ms, "ms"}};
-    step.details = {{"bad_reports", d.frames.bad_reports},
-                    {"transfer_errors", d.transfer_errors},
-                    {"in_completed", d.in_completed},
-                    {"out_superseded", d.out_superseded},
-                    {"speed", d.speed},
-                    {"serial", d.serial}};
-    const std::string numbers =
-        "p50 " + usb_check_fmt(usb_check_ms(d.round_trip_p50_ns)) + " ms, p99 " +
-        usb_check_fmt(usb_check_ms(d.round_trip_p99_ns)) + " ms, max " +
-        usb_check_fmt(usb_check_ms(d.round_trip_max_ns)) + " ms over " +
-        std::to_string(d.round_trips) + " round trips; " + std::to_string(d.frames.missed_frames) +
-        " missed frames, " + std::to_string(d.frames.stale_frames) + " stale cycles; period " +
-        usb_check_fmt(real_period_ms) + " ms";
-    if (!ok) {
-      step.outcome = Outcome::fail;
-      step.reason = "the device latched " + device.fault_report() + ": " + numbers;
-    } else if (d.frames.bad_reports > 0 || d.transfer_errors > 0) {
-      step.outcome = Outcome::fail;
-      step.reason = std::to_string(d.frames.bad_reports) + " IN reports refused, " +
-                    std::to_string(d.transfer_errors) + " transfer errors: " + numbers;
-    } else if (static_cast<std::int64_t>(d.round_trips) < options.exchanges / 10) {
-      step.outcome = Outcome::fail;
-      step.reason = "too few round trips measured: " + numbers;
-    } else if (d.frames.stale_run_max >= file_stale_limit) {
-      step.outcome = Outcome::fail;
-      step.reason = std::to_string(d.frames.stale_run_max) +
-                    " stale cycles in a row: the trainer would latch device_stopped (usb."
-                    "stale_limit_cycles = " + std::to_string(file_stale_limit) + "): " + numbers;
-    } else {
-      step.outcome = Outcome::pass;
-      step.reason = numbers + "; longest stale run " + std::to_string(d.frames.stale_run_max) +
-                    " < usb.stale_limit_cycles " + std::to_string(file_stale_limit);
-      if (usb_check_ms(d.round_trip_p99_ns) > real_period_ms) {
-        step.reason += " (p99 above a period: answers often come a cycle late)";
-      }
-    }
+    StepResult step = judge_round_trip(d, options.exchanges, period_ns * slow, file_stale_limit,
+                                       ok ? std::string() : device.fault_report());
     section.steps.push_back(std::move(step));
     if (!ok) {
       device.deactivate();

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "trainer/config/device.hpp"
+#include "trainer/hal_libusb/usb_device.hpp"
 #include "trainer/hil/step.hpp"
 
 namespace trainer::hil {
@@ -184,6 +185,13 @@ struct UsbCheckOptions {
 };
 CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options);
 
+// The round-trip step's verdict from the backend's diagnostics after `exchanges` cycles of
+// `real_period_ns` (wall clock): fails on a latched fault (`fault` non-empty), a refused report
+// or transfer error, fewer round trips than a tenth of the cycles, or a run of stale cycles
+// reaching the device file's `stale_limit` (the trainer would latch device_stopped).
+StepResult judge_round_trip(const hal::libusb::UsbDiagnostics& diagnostics, std::int64_t exchanges,
+                            std::int64_t real_period_ns, std::uint32_t stale_limit,
+                            const std::string& fault);
 // A channel's torque pulse: + effort must move the encoder + by at least min_counts.
 StepResult judge_polarity(const std::string& channel, std::int64_t delta_counts,
                           std::int64_t min_counts, double effort, const std::string& unit);
