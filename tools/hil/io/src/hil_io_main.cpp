@@ -72,11 +72,20 @@ class DriverOperator final : public trainer::hil::Operator {
   std::string act_;
 };
 
-bool any_failed(const std::vector<trainer::hil::StepResult>& steps) {
+struct Tally {
+  int pass = 0, fail = 0, skip = 0;
+};
+
+bool any_failed(const std::vector<trainer::hil::StepResult>& steps, Tally& tally) {
+  bool failed = false;
   for (const auto& step : steps) {
-    if (step.outcome == trainer::hil::Outcome::fail) return true;
+    switch (step.outcome) {
+      case trainer::hil::Outcome::pass: ++tally.pass; break;
+      case trainer::hil::Outcome::fail: ++tally.fail; failed = true; break;
+      case trainer::hil::Outcome::skip: ++tally.skip; break;
+    }
   }
-  return false;
+  return failed;
 }
 
 }  // namespace
@@ -140,12 +149,13 @@ int main(int argc, char** argv) {
   const bool usb = part == "usb" || part == "all";
   nlohmann::json out = nlohmann::json::array();
   bool failed = false;
+  Tally tally;
   if (scan->parsed()) {
     std::vector<trainer::hil::ScanSection> sections;
     if (gpio) sections.push_back(trainer::hil::scan_gpio(bench));
     if (usb) sections.push_back(trainer::hil::scan_usb(bench));
     for (const auto& s : sections) {
-      failed = failed || any_failed(s.comparison);
+      failed = any_failed(s.comparison, tally) || failed;
       if (json) {
         out.push_back(trainer::hil::to_json(s));
       } else {
@@ -162,7 +172,7 @@ int main(int argc, char** argv) {
     if (gpio) sections.push_back(trainer::hil::check_gpio(bench, options));
     if (usb) sections.push_back(trainer::hil::check_usb(bench, usb_options));
     for (const auto& s : sections) {
-      failed = failed || any_failed(s.steps);
+      failed = any_failed(s.steps, tally) || failed;
       if (json) {
         out.push_back(trainer::hil::to_json(s));
       } else {
@@ -170,6 +180,11 @@ int main(int argc, char** argv) {
       }
     }
   }
-  if (json) std::cout << out.dump(2) << "\n";
+  if (json) {
+    std::cout << out.dump(2) << "\n";
+  } else {
+    std::cout << tally.pass << " passed, " << tally.fail << " failed, " << tally.skip
+              << " skipped\n";
+  }
   return failed ? 1 : 0;
 }
