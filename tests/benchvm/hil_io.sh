@@ -36,6 +36,14 @@ run() {  # NAME ARGS...: hil_io ARGS --json to NAME.json, stderr to NAME.txt, st
   echo "$name: exit $(cat "$out/$name.status") after $(( (${EPOCHREALTIME/./} - ${t0/./}) / 1000 )) ms"
 }
 mark "gpio-sim chip created"
+# The USB gadget stack loads meanwhile on the other vCPU (9-23 s under TCG: module files read
+# over 9p), beside the GPIO cases.
+# (Not in the gpio-only distribution run: it would load the guest during the measurement.)
+modules=
+if [ "$only" != gpio-only ]; then
+  tools/benchvm/usb-gadget-modules >"$out/modules.txt" 2>&1 &
+  modules=$!
+fi
 run gpio_scan scan --part gpio --device "$device"
 run gpio_check check --part gpio --device "$device" --yes --act "tests/benchvm/hil_io_act.sh good" \
   --slow-motion "$slow" --trials "$trials" "${margin[@]}"
@@ -49,7 +57,7 @@ run gpio_check_dead check --part gpio --device "$device" --yes \
 # --- USB
 mark "GPIO cases done"
 usb_device=config/devices/usb_benchvm.toml
-if ! tools/benchvm/usb-gadget-modules >"$out/modules.txt" 2>&1; then
+if ! wait "$modules"; then
   echo "FAIL: the USB gadget modules did not load"
   cat "$out/modules.txt"
   exit 10
@@ -77,7 +85,13 @@ if [ "$enumerated" != 1 ]; then
 fi
 mark "gadget enumerated"
 run usb_scan scan --part usb --device "$usb_device"
-run usb_check check --part usb --device "$usb_device" --yes --slow-motion "$usb_slow" \
+# The round-trip step judges the longest run of stale cycles against usb.stale_limit_cycles (5
+# in usb_benchvm.toml). Under TCG on the loaded host an exchange stalled once for 1.95 s (41
+# stale cycles at x16) in about ten runs: CI's copy of the file allows 200, the verdict itself is
+# unit-tested (hil_io.RoundTripVerdict).
+sed 's/^stale_limit_cycles = 5 /stale_limit_cycles = 200 /' "$usb_device" >"$out/usb_ci.toml"
+grep -q '^stale_limit_cycles = 200 ' "$out/usb_ci.toml" || { echo "FAIL: usb_ci.toml"; exit 1; }
+run usb_check check --part usb --device "$out/usb_ci.toml" --yes --slow-motion "$usb_slow" \
   --exchanges "$exchanges"
 sed 's/^serial = "usbgadget-0001"/serial = "bench-0002"/' "$usb_device" >"$out/usb_other_serial.toml"
 run usb_scan_other_serial scan --part usb --device "$out/usb_other_serial.toml"
