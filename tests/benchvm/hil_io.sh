@@ -4,7 +4,9 @@
 #   hil_io.sh BIN_DIR TRIALS SLOW_MOTION [gpio-only|USB_SLOW EXCHANGES]
 #  1. good bench: `hil_io scan` and `hil_io check --yes --act "hil_io_act.sh good"` (TRIALS
 #     presses of the e-stop, releases of the enable switch, the outputs read back);
-#  2. a device file naming a line the chip lacks: scan fails naming it;
+#  2. a device file naming a line the chip lacks: scan fails naming it; one naming the spare
+#     line, which the kernel holds as an output (a hog), as the enable input: scan fails it as
+#     used, in the wrong direction;
 #  3. dead e-stop line (the act script's press reaches another line): check fails the e-stop
 #     step with "no edge on <chip>:0 (estop) within 2 s — check wiring";
 #  4. USB: the gadget stack loaded, usbgadget (config/devices/usb_benchvm.toml, the hand held
@@ -25,7 +27,7 @@ device=config/devices/gpio_sim_bench.toml
 mark() { echo "at $(cut -d' ' -f1 /proc/uptime) s (guest uptime): $*"; }
 mark "start"
 chip=$(tests/benchvm/gpio_sim_chip.sh create trainer trainer-bench estop enable drive_enable \
-  fault_lamp spare) || { echo "FAIL: cannot create the gpio-sim chip"; exit 1; }
+  fault_lamp spare@output-high) || { echo "FAIL: cannot create the gpio-sim chip"; exit 1; }
 export HIL_SIM_BASE=/sys/devices/platform/$(cat /sys/kernel/config/gpio-sim/trainer/dev_name)/$chip
 echo "gpio-sim chip: $chip ($HIL_SIM_BASE)"
 run() {  # NAME ARGS...: hil_io ARGS --json to NAME.json, stderr to NAME.txt, status to NAME.status
@@ -50,6 +52,9 @@ run gpio_check check --part gpio --device "$device" --yes --act "tests/benchvm/h
 [ "$only" = gpio-only ] && exit 0
 sed 's/^line = "fault_lamp"/line = "fault_lmp"/' "$device" >"$out/miswired.toml"
 run gpio_scan_miswired scan --part gpio --device "$out/miswired.toml"
+# The enable switch named on the spare line, which the kernel holds as an output (a hog).
+sed 's/^line = "enable"/line = "spare"/' "$device" >"$out/on_hog.toml"
+run gpio_scan_on_hog scan --part gpio --device "$out/on_hog.toml"
 run gpio_check_dead check --part gpio --device "$device" --yes \
   --act "tests/benchvm/hil_io_act.sh dead" --slow-motion "$slow" --trials 1 --action-timeout 2 \
   "${margin[@]}"

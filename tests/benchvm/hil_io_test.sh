@@ -3,7 +3,8 @@
 # bench VM, one boot (tests/benchvm/hil_io.sh runs the cases, this script judges them):
 #  - a good bench: scan passes every [gpio] line; check passes the e-stop and enable
 #    edge-to-latch steps over TRIALS presses each and reads the outputs back;
-#  - a device file naming a line the chip lacks: scan fails that line, naming it;
+#  - a device file naming a line the chip lacks: scan fails that line, naming it; one naming a
+#    line the kernel holds as an output (a hog) as the enable input: used, wrong direction;
 #  - a dead e-stop line: check fails gpio.estop.edge_to_latch with "no edge on ... check wiring" (2 s timeout);
 #  - USB: usbgadget on dummy_hcd: scan finds it with the device file's identity, check passes the
 #    round trip (200 exchanges, x16), a torque pulse per channel and the watchdog; a device file
@@ -73,6 +74,13 @@ if not only:
     check("miswired file: gpio.scan.fault_lamp fails naming the line",
           st.get("outcome") == "fail" and
           st.get("reason", "").startswith("no line named 'fault_lmp' on gpiochip"))
+    status, steps = load("gpio_scan_on_hog")
+    check("enable on a hog: scan exits 1", status == 1)
+    st = steps.get("gpio.scan.enable", {})
+    check("enable on a hog: gpio.scan.enable fails as used, wrong direction",
+          st.get("outcome") == "fail" and
+          ":4 'spare' already used by 'spare-hog' as an output: wrong direction, the device file "
+          "wants an input" in st.get("reason", ""))
     status, steps = load("gpio_check_dead")
     check("dead e-stop: check exits 1", status == 1)
     st = steps.get("gpio.estop.edge_to_latch", {})
