@@ -144,6 +144,7 @@ ReturnCode GpioDevice::read_digital_inputs(std::uint32_t& levels) noexcept {
     if (changed) {
       const bool latch_level = line.latch == Latch::active;
       ++stats_.changed_reads[i];
+      stats_.last_change_event_ns[i] = io_->oldest_event_ns(i);
       if (active != latch_level) ++stats_.pulses_latched[i];
       reported = latch_level;
     }

@@ -69,6 +69,7 @@ class GpiodLineIo final : public LineIo {
       return ReturnCode::error;
     }
     Line& line = lines_[index];
+    line.oldest_event_ns = 0;
     const int value = gpiod_line_get_value(line.line);
     if (value < 0) return ReturnCode::error;
     active = value != 0;
@@ -79,6 +80,11 @@ class GpiodLineIo final : public LineIo {
       if (count < 0) {
         if (errno == EAGAIN || errno == EWOULDBLOCK) break;
         return ReturnCode::error;
+      }
+      if (count > 0 && !changed) {
+        // uAPI v1 timestamps are CLOCK_MONOTONIC since Linux 5.7 (REALTIME before).
+        line.oldest_event_ns = static_cast<std::int64_t>(events[0].ts.tv_sec) * 1'000'000'000 +
+                               static_cast<std::int64_t>(events[0].ts.tv_nsec);
       }
       if (count > 0) changed = true;
       if (count < static_cast<int>(kEventBatch)) break;
@@ -95,6 +101,10 @@ class GpiodLineIo final : public LineIo {
       if (gpiod_line_set_value_bulk(&group.bulk, values.data()) != 0) result = ReturnCode::error;
     }
     return result;
+  }
+
+  std::int64_t oldest_event_ns(std::size_t index) const noexcept override {
+    return index < lines_.size() ? lines_[index].oldest_event_ns : 0;
   }
 
   void release() noexcept override {
@@ -117,6 +127,7 @@ class GpiodLineIo final : public LineIo {
     bool input = false;
     int flags = 0;
     int event_fd = -1;
+    std::int64_t oldest_event_ns = 0;
   };
   struct OutputGroup {
     gpiod_chip* chip = nullptr;

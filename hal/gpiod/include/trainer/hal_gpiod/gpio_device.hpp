@@ -95,6 +95,10 @@ class LineIo {
   // RT. Input `index`: its logical level now, and whether any edge event arrived since the
   // last call for it (events drained, never waiting).
   virtual ReturnCode sample_input(std::size_t index, bool& active, bool& changed) noexcept = 0;
+  // RT. The kernel's timestamp (CLOCK_MONOTONIC, ns) of the oldest edge event that the last
+  // sample_input() of input `index` drained; 0 when it drained none or the seam keeps no time.
+  // For measurements (hil's edge-to-latch step); the device's logic does not use it.
+  virtual std::int64_t oldest_event_ns(std::size_t /*index*/) const noexcept { return 0; }
   // RT. Sets every output line to levels[index] (logical; entries of inputs ignored).
   virtual ReturnCode write_outputs(std::span<const std::uint8_t, kMaxLines> levels) noexcept = 0;
   // Non-RT. Releases every claimed line (no-op when none).
@@ -112,6 +116,9 @@ struct GpioStats {
   // seen only through its events).
   std::array<std::uint64_t, kMaxLines> changed_reads{};
   std::array<std::uint64_t, kMaxLines> pulses_latched{};
+  // Per input line: the kernel timestamp (CLOCK_MONOTONIC ns) of the oldest edge event drained
+  // by the last read after which the line had changed (LineIo::oldest_event_ns; 0 = unknown).
+  std::array<std::int64_t, kMaxLines> last_change_event_ns{};
 };
 
 class GpioDevice final : public hal::Device,
