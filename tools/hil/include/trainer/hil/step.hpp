@@ -91,6 +91,8 @@ struct ScanSection {
   std::string part;  // "can", "gpio", "usb"
   std::vector<ScanItem> found;
   std::vector<StepResult> comparison;
+  // What the comparison calls for (e.g. a node_id when the drive answers under another id).
+  std::vector<Correction> corrections;
 };
 
 // A part's checks and the corrections its measurements call for.

@@ -1,0 +1,372 @@
+// hil: the hardware-in-the-loop bring-up and commissioning tool (docs/hil.md).
+//
+//   hil [--device FILE] [--json] [--yes] [--act CMD] [--slow-motion N] [--can-interface NAME]
+//       [--report-json FILE] [--report-md FILE] [--write-device FILE | --fix]
+//       scan  [--nmt-reset] [--listen-ms N]
+//       check [--only PART/STEP]... [--torque-limit F] [--trials N] [--period-us N]
+//
+// Every part of the bench (CAN drives here; GPIO lines and USB devices by the parts registered
+// next to it) scans and checks through the table kParts below. Human output: one line per step
+// (PASS/FAIL/SKIP id reason [figures]); --json prints the report's JSON on stdout instead (the
+// lines then go to stderr). Exit status: 0 every step passed or was skipped, 1 a step failed,
+// 2 usage error, 3 setup error (device file, interface, report or device file not written,
+// interrupted).
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "trainer/config/device.hpp"
+#include "trainer/hal_socketcan/can_transport.hpp"
+#include "trainer/hil/can_part.hpp"
+#include "trainer/hil/device_edit.hpp"
+#include "trainer/hil/operators.hpp"
+#include "trainer/hil/report.hpp"
+#include "trainer/hil/step_filter.hpp"
+
+#ifndef TRAINER_HIL_VERSION
+#define TRAINER_HIL_VERSION "unknown"
+#endif
+#ifndef TRAINER_HIL_GIT_DESCRIBE
+#define TRAINER_HIL_GIT_DESCRIBE "unknown"
+#endif
+
+namespace {
+
+namespace hil = trainer::hil;
+namespace sc = trainer::hal::socketcan;
+
+constexpr int kExitUsage = 2;
+constexpr int kExitSetup = 3;
+
+struct Options {
+  std::string device_file;
+  bool json = false;
+  bool yes = false;
+  std::string act;
+  std::int64_t slow_motion = 1;
+  std::string can_interface;
+  std::string report_json;
+  std::string report_md;
+  std::string write_device;
+  bool fix = false;
+  // scan
+  bool nmt_reset = false;
+  std::int64_t listen_ms = 300;
+  // check
+  std::vector<std::string> only;
+  double torque_limit = 0.05;
+  int trials = 0;
+  std::int64_t period_us = 4000;
+};
+
+// --------------------------------------------------------------------------- the parts
+// A part scans and checks one kind of bench hardware. nullopt: the part has nothing to do on
+// this bench (e.g. no CAN interface and no CANopen device file).
+
+std::optional<sc::CanTransport> open_can(const hil::BenchContext& context, const Options& options,
+                                         std::string& error) {
+  std::string interface = options.can_interface;
+  if (interface.empty() && context.device && context.device->backend == "canopen")
+    interface = context.device->canopen.interface;
+  if (interface.empty()) return std::nullopt;
+  sc::SocketCanOptions socket_options;
+  socket_options.error_frames = false;
+  auto transport = sc::CanTransport::open_socketcan(interface, {}, socket_options);
+  if (!transport) {
+    error = transport.error().message;
+    return std::nullopt;
+  }
+  return std::move(*transport);
+}
+
+hil::can::CanOptions can_options(const Options& options) {
+  hil::can::CanOptions can;
+  can.listen_ns = options.listen_ms * 1'000'000;
+  can.nmt_reset = options.nmt_reset;
+  can.period_ns = options.period_us * 1000;
+  return can;
+}
+
+// A part that could not open its hardware: the run ends with exit status 3.
+bool g_setup_failed = false;
+
+hil::StepResult setup_failure(const std::string& part, const std::string& why) {
+  g_setup_failed = true;
+  hil::StepResult step;
+  step.id = part + ".setup";
+  step.title = part + ": open the bus";
+  step.outcome = hil::Outcome::fail;
+  step.reason = why;
+  return step;
+}
+
+std::optional<hil::ScanSection> can_scan(const hil::BenchContext& context, const Options& options) {
+  std::string error;
+  auto bus = open_can(context, options, error);
+  if (!bus) {
+    if (error.empty()) return std::nullopt;
+    hil::ScanSection section;
+    section.part = "can";
+    section.comparison.push_back(setup_failure("can", error));
+    return section;
+  }
+  return hil::can::scan(context, *bus, can_options(options));
+}
+
+std::optional<hil::CheckSection> can_check(const hil::BenchContext& context, const Options& options,
+                                           const hil::StepFilter& filter) {
+  if (!context.device || context.device->backend != "canopen") return std::nullopt;
+  std::string error;
+  auto bus = open_can(context, options, error);
+  if (!bus) {
+    hil::CheckSection section;
+    section.part = "can";
+    section.steps.push_back(setup_failure("can", error.empty() ? "no CAN interface" : error));
+    return section;
+  }
+  return hil::can::check(context, *bus, filter, can_options(options));
+}
+
+struct Part {
+  const char* name;
+  std::optional<hil::ScanSection> (*scan)(const hil::BenchContext&, const Options&);
+  std::optional<hil::CheckSection> (*check)(const hil::BenchContext&, const Options&,
+                                            const hil::StepFilter&);
+};
+
+// THE PARTS TABLE. Each part is one line: its name (the PART of --only PART/STEP and of the step
+// ids), its scan and its check. The GPIO and USB parts (tools/hil gpio_part / usb_part) register
+// here, e.g.
+//   {"gpio", gpio_scan, gpio_check},
+//   {"usb", usb_scan, usb_check},
+// with wrappers like can_scan/can_check above that open their hardware from Options.
+const Part kParts[] = {
+    {"can", can_scan, can_check},
+};
+
+// --------------------------------------------------------------------------- the program
+
+void print_step(const hil::StepResult& step, std::ostream& out) { out << hil::human_line(step) << '\n'; }
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Writes the corrections (if any, and if asked) into a device file: every change shown, then
+// confirmed; the result must load before it replaces anything. Returns false on a setup error.
+bool write_corrections(const Options& options, hil::Operator& op, hil::Report& report,
+                       std::ostream& out) {
+  const std::vector<hil::Correction> corrections = hil::all_corrections(report);
+  if (corrections.empty()) return true;
+  out << "corrections of " << options.device_file << ":\n";
+  for (const hil::Correction& c : corrections) {
+    out << "  [" << c.table << "]" << (c.instrument.empty() ? "" : " of \"" + c.instrument + "\"")
+        << " " << c.key << " " << (c.old_value.empty() ? "(absent)" : c.old_value) << " -> "
+        << c.new_value << "  (" << c.why << ")\n";
+  }
+  if (options.write_device.empty() && !options.fix) {
+    out << "  (not written: give --write-device FILE, or --fix to correct " << options.device_file
+        << " itself)\n";
+    return true;
+  }
+  const std::string target = options.fix ? options.device_file : options.write_device;
+  const std::string text = read_file(options.device_file);
+  auto edited = hil::apply_corrections(text, options.device_file, corrections);
+  if (!edited) {
+    std::cerr << "hil: " << edited.error().message << '\n';
+    return false;
+  }
+  for (const hil::LineChange& change : edited->changes) {
+    out << "  " << change.describe(target) << "\n    - " << (change.inserted ? "(new line)" : change.before)
+        << "\n    + " << change.after << '\n';
+  }
+  std::error_code ignored;
+  const bool overwrite_input = std::filesystem::equivalent(target, options.device_file, ignored);
+  if (overwrite_input &&
+      !op.confirm("Overwrite the input device file " + options.device_file + "?")) {
+    std::cerr << "hil: the input device file is not overwritten without confirmation\n";
+    return false;
+  }
+  if (!op.confirm("Write " + std::to_string(edited->changes.size()) + " change(s) to " + target + "?")) {
+    out << "  not written (not confirmed)\n";
+    return true;
+  }
+  const std::string temporary = target + ".hil-tmp";
+  {
+    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
+    file << edited->text;
+    if (!file) {
+      std::cerr << "hil: cannot write " << temporary << '\n';
+      return false;
+    }
+  }
+  if (auto loaded = trainer::config::load_device(temporary); !loaded) {
+    std::filesystem::remove(temporary, ignored);
+    std::cerr << "hil: the corrected device file would not load, nothing written: "
+              << loaded.error().message << '\n';
+    return false;
+  }
+  std::filesystem::rename(temporary, target, ignored);
+  if (ignored) {
+    std::cerr << "hil: cannot replace " << target << ": " << ignored.message() << '\n';
+    return false;
+  }
+  report.corrected_file = target;
+  for (const hil::LineChange& change : edited->changes) report.applied_changes.push_back(change.describe(target));
+  out << "  written: " << target << '\n';
+  return true;
+}
+
+bool write_text(const std::string& path, const std::string& text) {
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  file << text;
+  return static_cast<bool>(file);
+}
+
+int run(const std::string& command, const Options& options, const std::string& arguments) {
+  hil::BenchContext context;
+  hil::Report report;
+  report.run.command = command;
+  report.run.arguments = arguments;
+  report.run.tool_version = TRAINER_HIL_VERSION;
+  report.run.git_describe = TRAINER_HIL_GIT_DESCRIBE;
+  report.run.date_utc = hil::utc_now_iso8601();
+  report.run.host = hil::host_description();
+  report.run.slow_motion = options.slow_motion;
+  report.run.torque_limit_fraction = options.torque_limit;
+  if (!options.device_file.empty()) {
+    auto device = trainer::config::load_device(options.device_file);
+    if (!device) {
+      std::cerr << "hil: " << device.error().message << '\n';
+      return kExitSetup;
+    }
+    context.device = std::move(*device);
+    report.run.device_path = options.device_file;
+    report.run.device_sha256 = hil::sha256_hex(read_file(options.device_file));
+  }
+  hil::OperatorOptions operator_options;
+  operator_options.yes = options.yes;
+  operator_options.act_command = options.act;
+  operator_options.interactive = ::isatty(STDIN_FILENO) != 0;
+  hil::ConsoleOperator op(operator_options);
+  context.op = &op;
+  context.max_torque_fraction = options.torque_limit;
+  context.slow_motion = options.slow_motion;
+  context.trials = options.trials;
+  std::ostream& out = options.json ? std::cerr : std::cout;
+  const hil::StepFilter filter(options.only);
+  try {
+    for (const Part& part : kParts) {
+      if (!filter.wants_part(part.name)) continue;
+      if (command == "scan") {
+        auto section = part.scan(context, options);
+        if (!section) continue;
+        for (const hil::ScanItem& item : section->found) out << "found " << item.name << " " << item.properties.dump() << '\n';
+        for (const hil::StepResult& step : section->comparison) print_step(step, out);
+        report.scans.push_back(std::move(*section));
+      } else {
+        auto section = part.check(context, options, filter);
+        if (!section) continue;
+        for (const hil::StepResult& step : section->steps) print_step(step, out);
+        report.checks.push_back(std::move(*section));
+      }
+    }
+  } catch (const hil::Interrupted& stop) {
+    std::cerr << "hil: " << stop.what() << '\n';
+    return kExitSetup;
+  }
+  bool ok = true;
+  if (context.device) ok = write_corrections(options, op, report, out);
+  if (!options.report_json.empty() && !write_text(options.report_json, hil::to_json(report).dump(2) + "\n")) {
+    std::cerr << "hil: cannot write " << options.report_json << '\n';
+    ok = false;
+  }
+  if (!options.report_md.empty() && !write_text(options.report_md, hil::to_markdown(report))) {
+    std::cerr << "hil: cannot write " << options.report_md << '\n';
+    ok = false;
+  }
+  const hil::Tally t = hil::tally(report);
+  out << "hil " << command << ": " << t.pass << " pass, " << t.fail << " fail, " << t.skip << " skip\n";
+  if (options.json) std::cout << hil::to_json(report).dump(2) << '\n';
+  if (!ok || g_setup_failed) return kExitSetup;
+  return hil::exit_status(report);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{"hil: hardware-in-the-loop bring-up and commissioning of the trainer's bench"};
+  cli.require_subcommand(1);
+  Options options;
+  cli.add_option("--device", options.device_file, "device file of the bench (config/devices/*.toml)")
+      ->check(CLI::ExistingFile);
+  cli.add_flag("--json", options.json, "print the report as JSON on stdout (step lines go to stderr)");
+  cli.add_flag("--yes", options.yes, "answer yes to every confirmation (torque, writing files)");
+  cli.add_option("--act", options.act,
+                 "scripted operator: run 'CMD ACTION' for each action asked of a person");
+  cli.add_option("--slow-motion", options.slow_motion,
+                 "time stretch of an emulator, as the trainer's --slow-motion (figures stay in "
+                 "bench time)")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1000}));
+  cli.add_option("--can-interface", options.can_interface,
+                 "SocketCAN interface (default: the device file's canopen.interface)");
+  cli.add_option("--report-json", options.report_json, "write the commissioning report as JSON");
+  cli.add_option("--report-md", options.report_md, "write the commissioning report as Markdown");
+  auto* write = cli.add_option("--write-device", options.write_device,
+                               "write the device file corrected from the measurements here "
+                               "(each change shown and confirmed)");
+  cli.add_flag("--fix", options.fix, "correct the --device file itself (confirmed)")->excludes(write);
+  CLI::App* scan = cli.add_subcommand("scan", "what is on the bench, compared with --device");
+  scan->add_flag("--nmt-reset", options.nmt_reset,
+                 "send NMT reset communication to every node first (asks)");
+  scan->add_option("--listen-ms", options.listen_ms, "listen for boot-ups/heartbeats this long")
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{60000}));
+  CLI::App* check = cli.add_subcommand("check", "measure every axis and the bus (needs --device)");
+  check->add_option("--only", options.only,
+                    "only these steps: PART, PART/STEP, PART/AXIS, PART/AXIS.STEP (repeatable)");
+  check->add_option("--torque-limit", options.torque_limit,
+                    "torque limit as a fraction of each axis's current limit (default 0.05)")
+      ->check(CLI::Range(0.001, 0.5));
+  check->add_option("--trials", options.trials, "repetitions of the timed steps (heartbeat_loss)")
+      ->check(CLI::Range(1, 100000));
+  check->add_option("--period-us", options.period_us,
+                    "SYNC period when the device file says 0 (every loop period)")
+      ->check(CLI::Range(std::int64_t{500}, std::int64_t{100000}));
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::CallForHelp& help) {
+    return cli.exit(help);
+  } catch (const CLI::ParseError& error) {
+    (void)cli.exit(error);
+    return kExitUsage;
+  }
+  const std::string command = scan->parsed() ? "scan" : "check";
+  if (command == "check" && options.device_file.empty()) {
+    std::cerr << "hil check: --device FILE is required (what the bench should be)\n";
+    return kExitUsage;
+  }
+  if (options.fix && options.device_file.empty()) {
+    std::cerr << "hil: --fix corrects the --device file: give one\n";
+    return kExitUsage;
+  }
+  std::string arguments;
+  for (int i = 0; i < argc; ++i) arguments += (i == 0 ? "" : " ") + std::string(argv[i]);
+  hil::install_interrupt_handler();
+  try {
+    return run(command, options, arguments);
+  } catch (const std::exception& error) {
+    std::cerr << "hil: " << error.what() << '\n';
+    return kExitSetup;
+  }
+}
