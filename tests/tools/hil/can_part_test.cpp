@@ -283,6 +283,7 @@ TEST(HilCan, HeartbeatLossIsTimedOverTrials) {
   const StepResult& loss = check.steps[0];
   EXPECT_EQ(loss.outcome, Outcome::pass) << loss.reason;
   EXPECT_EQ(figure(loss, "trials"), 5.0);
+  EXPECT_EQ(figure(loss, "disturbed"), 0.0);
   EXPECT_EQ(figure(loss, "consumer_time"), 60.0);
   EXPECT_GE(figure(loss, "min"), 56.0);
   EXPECT_LE(figure(loss, "max"), 60.0 + 18.0);

@@ -235,7 +235,7 @@ void step_motor_polarity(AxisContext& a) {
     StepResult step = make_step(id, title);
     step.outcome = Outcome::fail;
     step.reason = "the drive did not reach Operation enabled within 1 s (statusword " +
-                  hex8(d.statusword >> 8) + hex8(d.statusword).substr(2) + ", " +
+                  hex16(d.statusword) + ", " +
                   co::to_string(co::decode_statusword(d.statusword)) + ")";
     a.out.steps.push_back(std::move(step));
     settle_disabled(a, 50 * kMs);
@@ -312,6 +312,12 @@ void step_heartbeat_loss(AxisContext& a, sc::detail::SetupBus& sdo, sc::CanTrans
   std::vector<double> times_ms;
   std::vector<std::string> evidence_kinds;
   std::string failure;
+  // A trial whose torque went off early for another reason than the heartbeat (the drive's
+  // EMCY says which, e.g. 0x8250 RPDO deadline after a hiccup of this program) is disturbed:
+  // counted, reported and run again, a bounded number of times.
+  int disturbed = 0;
+  std::vector<std::string> disturbances;
+  const int max_disturbed = 3 + trials / 10;
   for (int trial = 0; trial < trials && failure.empty(); ++trial) {
     a.master.heartbeat_on = true;
     const auto small = static_cast<std::int16_t>(
@@ -364,8 +370,21 @@ void step_heartbeat_loss(AxisContext& a, sc::detail::SetupBus& sdo, sc::CanTrans
                 " ms): the drive does not watch the master";
       break;
     }
+    const bool other_cause = d.emcy_code && *d.emcy_code != co::kEmcyHeartbeatError &&
+                             evidence_ns - last_heartbeat < consumer_ns - period;
+    if (other_cause && disturbed < max_disturbed) {
+      ++disturbed;
+      disturbances.push_back("EMCY " + hex16(*d.emcy_code) +
+                             " (" + co::describe_emcy_code(*d.emcy_code) + ") after " +
+                             format_double(static_cast<double>(evidence_ns - last_heartbeat) / 1e6) + " ms");
+      --trial;
+      a.master.heartbeat_on = true;
+      settle_disabled(a, 100 * kMs);
+      continue;
+    }
     times_ms.push_back(static_cast<double>(evidence_ns - last_heartbeat) / 1e6);
-    evidence_kinds.push_back(kind);
+    evidence_kinds.push_back(other_cause ? kind + " (EMCY " + hex16(*d.emcy_code) + ")"
+                                         : kind);
     // Back to a quiet drive for the next trial (heartbeat on again, torque off).
     a.master.heartbeat_on = true;
     settle_disabled(a, 100 * kMs);
@@ -377,6 +396,8 @@ void step_heartbeat_loss(AxisContext& a, sc::detail::SetupBus& sdo, sc::CanTrans
   const double limit_ms = static_cast<double>(consumer_ns + allowance) / 1e6;
   step.figures.push_back({"consumer_time", consumer_ms, "ms"});
   step.figures.push_back({"trials", static_cast<double>(times_ms.size()), ""});
+  step.figures.push_back({"disturbed", static_cast<double>(disturbed), ""});
+  step.details["disturbed"] = disturbances;
   if (!times_ms.empty()) {
     step.figures.push_back({"p50", percentile(times_ms, 50), "ms"});
     step.figures.push_back({"p90", percentile(times_ms, 90), "ms"});
@@ -466,6 +487,7 @@ void bus_statistics(const BenchContext& bench, const StepFilter& filter, sc::det
                     {"p99", p99, "ms"},
                     {"max", percentile(jitter, 100), "ms"}};
     step.details["criterion"] = "p99 of |SYNC interval - period| <= 25 % of the period";
+    step.details["interval_error_ms"] = jitter;
     if (p99 <= 0.25 * period_ms) {
       step.outcome = Outcome::pass;
       step.reason = "SYNC interval within " + format_double(p99) + " ms of " +
@@ -488,11 +510,13 @@ void bus_statistics(const BenchContext& bench, const StepFilter& filter, sc::det
                     {"p99", p99, "ms"},
                     {"max", percentile(trip, 100), "ms"}};
     step.details["criterion"] =
-        "every drive's TPDO1 answers its SYNC within the period (p99), none missing";
+        "TPDO1 answers its SYNC within the period (p99), at most 1 % of the answers missing";
+    step.details["round_trip_ms"] = trip;
     if (trip.empty()) {
       step.outcome = Outcome::fail;
       step.reason = "no TPDO1 came back";
-    } else if (p99 < period_ms && r.missing_tpdos == 0) {
+    } else if (p99 < period_ms && static_cast<double>(r.missing_tpdos) <=
+                                      0.01 * static_cast<double>(r.syncs * master.drives.size())) {
       step.outcome = Outcome::pass;
       step.reason = "TPDO1 " + format_double(percentile(trip, 50)) + " ms after the SYNC (p50; p99 " +
                     format_double(p99) + " ms < period " + format_double(period_ms) + " ms)";

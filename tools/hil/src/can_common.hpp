@@ -50,6 +50,12 @@ inline std::string hex32(std::uint32_t value) {
   return text;
 }
 
+inline std::string hex16(std::uint32_t value) {
+  char text[8];
+  std::snprintf(text, sizeof text, "0x%04X", value & 0xFFFFU);
+  return text;
+}
+
 inline std::string hex8(std::uint32_t value) {
   char text[8];
   std::snprintf(text, sizeof text, "0x%02X", value & 0xFFU);

@@ -4,6 +4,7 @@
 //       [--report-json FILE] [--report-md FILE] [--write-device FILE | --fix]
 //       scan  [--nmt-reset] [--listen-ms N]
 //       check [--only PART/STEP]... [--torque-limit F] [--trials N] [--period-us N]
+//             [--jitter-syncs N]
 //
 // Every part of the bench (CAN drives here; GPIO lines and USB devices by the parts registered
 // next to it) scans and checks through the table kParts below. Human output: one line per step
@@ -65,6 +66,7 @@ struct Options {
   double torque_limit = 0.05;
   int trials = 0;
   std::int64_t period_us = 4000;
+  std::int64_t jitter_syncs = 500;
 };
 
 // --------------------------------------------------------------------------- the parts
@@ -92,6 +94,7 @@ hil::can::CanOptions can_options(const Options& options) {
   can.listen_ns = options.listen_ms * 1'000'000;
   can.nmt_reset = options.nmt_reset;
   can.period_ns = options.period_us * 1000;
+  can.jitter_syncs = options.jitter_syncs;
   return can;
 }
 
@@ -343,6 +346,9 @@ int main(int argc, char** argv) {
   check->add_option("--period-us", options.period_us,
                     "SYNC period when the device file says 0 (every loop period)")
       ->check(CLI::Range(std::int64_t{500}, std::int64_t{100000}));
+  check->add_option("--jitter-syncs", options.jitter_syncs,
+                    "SYNCs of the bus statistics (sync_jitter, pdo_round_trip; default 500)")
+      ->check(CLI::Range(std::int64_t{10}, std::int64_t{1000000}));
   try {
     cli.parse(argc, argv);
   } catch (const CLI::CallForHelp& help) {
