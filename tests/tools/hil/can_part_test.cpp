@@ -208,6 +208,10 @@ TEST(HilCan, CheckOfAGoodAxisPassesEveryStepAndTheBusStatistics) {
   EXPECT_GT(figure(*trip, "p50"), 0.0);
   EXPECT_LT(figure(*trip, "p50"), 4.0);
   EXPECT_EQ(check.steps.size(), 6U) << dump(check.steps);
+  ASSERT_EQ(check.bench.size(), 1U) << "the identity of the drive checked";
+  EXPECT_EQ(check.bench[0].name, "node 1 (left.pitch)");
+  EXPECT_EQ(check.bench[0].properties["serial_number"], "0x00000001");
+  EXPECT_EQ(check.bench[0].properties["firmware"], "simdrive 1.0");
   EXPECT_TRUE(check.corrections.empty());
   // 5 % of 3 A * 0.03 N·m/A / 0.060 N·m = 75 permille.
   const StepResult* limit = find(check.steps, "can.left.pitch.torque_limit");

@@ -31,6 +31,7 @@ Report sample_report() {
   report.scans.push_back(scan);
   CheckSection check;
   check.part = "can";
+  check.bench.push_back({"can_node", "node 1 (left.pitch)", {{"serial_number", "0x00000001"}}});
   StepResult pass;
   pass.id = "can.left.pitch.heartbeat_loss";
   pass.outcome = Outcome::pass;
@@ -61,6 +62,7 @@ TEST(HilReport, JsonCarriesRunStepsFiguresAndCorrections) {
   EXPECT_EQ(json["scans"][0]["found"][0]["properties"]["node_id"], 13);
   EXPECT_EQ(json["scans"][0]["comparison"][0]["outcome"], "fail");
   EXPECT_EQ(json["scans"][0]["corrections"][0]["new_value"], "13");
+  EXPECT_EQ(json["checks"][0]["bench"][0]["properties"]["serial_number"], "0x00000001");
   const auto& step = json["checks"][0]["steps"][0];
   EXPECT_EQ(step["id"], "can.left.pitch.heartbeat_loss");
   EXPECT_EQ(step["figures"][0]["name"], "p50");
@@ -85,6 +87,7 @@ TEST(HilReport, MarkdownHasTheTablesAndEscapesCells) {
   EXPECT_NE(md.find("declined \\| by the operator"), std::string::npos);
   EXPECT_NE(md.find("| [instrument.yaw] of left | `encoder_direction` | 1 | -1 |"), std::string::npos);
   EXPECT_NE(md.find("| node 13 |"), std::string::npos);
+  EXPECT_NE(md.find("| node 1 (left.pitch) | serial_number 0x00000001 |"), std::string::npos);
 }
 
 TEST(HilReport, HumanLineAndExitStatus) {

@@ -126,6 +126,33 @@ bool enable_drive(AxisContext& a, std::int16_t permille) {
   return a.master.cycle_until([&] { return operation_enabled(d.statusword); }, 1000 * kMs);
 }
 
+// What the report records of a checked drive: node, axis, identity, firmware.
+ScanItem identity_of(sc::detail::SetupBus& sdo, const FileDrive& file, std::uint8_t node,
+                     const std::string& bus) {
+  ScanItem item;
+  item.kind = "can_node";
+  item.name = "node " + std::to_string(node) + " (" + file.axis + ")";
+  nlohmann::json& p = item.properties;
+  p["node_id"] = node;
+  p["axis"] = file.axis;
+  p["bus"] = bus;
+  const std::string who = "node " + std::to_string(node) + " (" + file.axis + ")";
+  const std::pair<std::uint8_t, const char*> fields[] = {
+      {co::kIdentityVendorId, "vendor_id"},
+      {co::kIdentityProductCode, "product_code"},
+      {co::kIdentityRevision, "revision"},
+      {co::kIdentitySerialNumber, "serial_number"}};
+  for (const auto& [sub, name] : fields) {
+    if (auto value = sdo.read(who, node, co::kObjectIdentity, sub)) p[name] = hex32(*value);
+  }
+  if (auto firmware = sdo.read_bytes(who, node, kObjectSoftwareVersion, 0, 64)) {
+    std::string text(firmware->begin(), firmware->end());
+    while (!text.empty() && text.back() == '\0') text.pop_back();
+    p["firmware"] = text;
+  }
+  return item;
+}
+
 void step_torque_limit(AxisContext& a, sc::detail::SetupBus& sdo) {
   StepResult step = make_step(a.prefix + ".torque_limit", a.file.axis + ": torque limit 0x6072");
   auto read = sdo.read("node " + std::to_string(a.drive.node_id) + " (" + a.file.axis + ")",
@@ -573,6 +600,7 @@ CheckSection check(const BenchContext& context, sc::CanTransport& bus, const Ste
       master.torque_off();
       continue;
     }
+    section.bench.push_back(identity_of(sdo, file, drive.node_id, bus.name()));
     if (filter.wants(prefix + ".torque_limit")) step_torque_limit(axis, sdo);
     settle_disabled(axis, 100 * kMs);
     if (filter.wants(prefix + ".encoder_direction")) step_encoder(axis);

@@ -83,7 +83,12 @@ nlohmann::json to_json(const Report& report) {
     for (const StepResult& step : check.steps) steps.push_back(step_to_json(step));
     nlohmann::json corrections = nlohmann::json::array();
     for (const Correction& c : check.corrections) corrections.push_back(correction_to_json(c));
-    checks.push_back({{"part", check.part}, {"steps", steps}, {"corrections", corrections}});
+    nlohmann::json bench = nlohmann::json::array();
+    for (const ScanItem& item : check.bench) {
+      bench.push_back({{"kind", item.kind}, {"name", item.name}, {"properties", item.properties}});
+    }
+    checks.push_back(
+        {{"part", check.part}, {"bench", bench}, {"steps", steps}, {"corrections", corrections}});
   }
   nlohmann::json corrections = nlohmann::json::array();
   for (const Correction& c : all_corrections(report)) corrections.push_back(correction_to_json(c));
@@ -170,6 +175,19 @@ void step_table(std::ostringstream& md, const std::vector<StepResult>& steps) {
   md << '\n';
 }
 
+void item_table(std::ostringstream& md, const std::vector<ScanItem>& items, const char* header) {
+  md << "| " << header << " | properties |\n|---|---|\n";
+  for (const ScanItem& item : items) {
+    std::string properties;
+    for (const auto& [key, value] : item.properties.items()) {
+      if (!properties.empty()) properties += ", ";
+      properties += key + " " + (value.is_string() ? value.get<std::string>() : value.dump());
+    }
+    md << "| " << cell(item.name) << " | " << cell(properties) << " |\n";
+  }
+  md << '\n';
+}
+
 }  // namespace
 
 std::string human_line(const StepResult& step) {
@@ -203,16 +221,7 @@ std::string to_markdown(const Report& report) {
     if (scan.found.empty()) {
       md << "Nothing found.\n\n";
     } else {
-      md << "| found | properties |\n|---|---|\n";
-      for (const ScanItem& item : scan.found) {
-        std::string properties;
-        for (const auto& [key, value] : item.properties.items()) {
-          if (!properties.empty()) properties += ", ";
-          properties += key + " " + (value.is_string() ? value.get<std::string>() : value.dump());
-        }
-        md << "| " << cell(item.name) << " | " << cell(properties) << " |\n";
-      }
-      md << '\n';
+      item_table(md, scan.found, "found");
     }
     if (!scan.comparison.empty()) {
       md << "### Compared with the device file\n\n";
@@ -221,6 +230,7 @@ std::string to_markdown(const Report& report) {
   }
   for (const CheckSection& check : report.checks) {
     md << "## Check: " << check.part << "\n\n";
+    if (!check.bench.empty()) item_table(md, check.bench, "checked");
     step_table(md, check.steps);
   }
   const std::vector<Correction> corrections = all_corrections(report);

@@ -100,6 +100,8 @@ struct CheckSection {
   std::string part;
   std::vector<StepResult> steps;
   std::vector<Correction> corrections;
+  // The identities of what was checked (drives, devices), for the commissioning report.
+  std::vector<ScanItem> bench;
 };
 
 }  // namespace trainer::hil
