@@ -201,10 +201,10 @@ void step_encoder(AxisContext& a) {
                                              "terminal and no --act)"));
     return;
   }
-  settle_disabled(a, 400 * kMs);
+  settle_disabled(a, 300 * kMs);
   const double after = mean_position(a.master, 0, 10);
   (void)a.bench.op->request(a.prefix + ".release", "Let go of " + a.file.axis);
-  settle_disabled(a, 300 * kMs);
+  settle_disabled(a, 200 * kMs);
   const double delta_counts = after - before;
   const double measured = a.drive.scale.position_from_counts(std::llround(delta_counts));
   const double ratio = measured / move;
@@ -268,17 +268,17 @@ void step_motor_polarity(AxisContext& a) {
     settle_disabled(a, 50 * kMs);
     return;
   }
-  a.master.cycles(cycles_for(100 * kMs, a.master.period_ns()));
+  a.master.cycles(cycles_for(50 * kMs, a.master.period_ns()));
   const double before = mean_position(a.master, 0, 10);
   // A positive JOINT torque: the file's motor_direction decides the sign on the wire.
   const auto permille = static_cast<std::int16_t>(
       std::lround(0.8 * a.torque.small_permille * a.drive.scale.motor_sign()));
   d.target_permille = permille;
-  a.master.cycles(cycles_for(300 * kMs, a.master.period_ns()));
+  a.master.cycles(cycles_for(250 * kMs, a.master.period_ns()));
   const double after = mean_position(a.master, 0, 10);
   const bool still_enabled = operation_enabled(d.statusword);
   d.target_permille = 0;
-  settle_disabled(a, 300 * kMs);
+  settle_disabled(a, 200 * kMs);
   const double delta_counts = after - before;
   const int encoder = a.measured_encoder_sign != 0 ? a.measured_encoder_sign : 1;
   const double moved = a.drive.scale.position_from_counts(std::llround(delta_counts)) * encoder;
