@@ -28,6 +28,7 @@
 #include "trainer/hal_socketcan/can_transport.hpp"
 #include "trainer/hil/can_part.hpp"
 #include "trainer/hil/device_edit.hpp"
+#include "trainer/hil/device_write.hpp"
 #include "trainer/hil/operators.hpp"
 #include "trainer/hil/report.hpp"
 #include "trainer/hil/step_filter.hpp"
@@ -159,77 +160,6 @@ const Part kParts[] = {
 
 void print_step(const hil::StepResult& step, std::ostream& out) { out << hil::human_line(step) << '\n'; }
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// Writes the corrections (if any, and if asked) into a device file: every change shown, then
-// confirmed; the result must load before it replaces anything. Returns false on a setup error.
-bool write_corrections(const Options& options, hil::Operator& op, hil::Report& report,
-                       std::ostream& out) {
-  const std::vector<hil::Correction> corrections = hil::all_corrections(report);
-  if (corrections.empty()) return true;
-  out << "corrections of " << options.device_file << ":\n";
-  for (const hil::Correction& c : corrections) {
-    out << "  [" << c.table << "]" << (c.instrument.empty() ? "" : " of \"" + c.instrument + "\"")
-        << " " << c.key << " " << (c.old_value.empty() ? "(absent)" : c.old_value) << " -> "
-        << c.new_value << "  (" << c.why << ")\n";
-  }
-  if (options.write_device.empty() && !options.fix) {
-    out << "  (not written: give --write-device FILE, or --fix to correct " << options.device_file
-        << " itself)\n";
-    return true;
-  }
-  const std::string target = options.fix ? options.device_file : options.write_device;
-  const std::string text = read_file(options.device_file);
-  auto edited = hil::apply_corrections(text, options.device_file, corrections);
-  if (!edited) {
-    std::cerr << "hil: " << edited.error().message << '\n';
-    return false;
-  }
-  for (const hil::LineChange& change : edited->changes) {
-    out << "  " << change.describe(target) << "\n    - " << (change.inserted ? "(new line)" : change.before)
-        << "\n    + " << change.after << '\n';
-  }
-  std::error_code ignored;
-  const bool overwrite_input = std::filesystem::equivalent(target, options.device_file, ignored);
-  if (overwrite_input &&
-      !op.confirm("Overwrite the input device file " + options.device_file + "?")) {
-    std::cerr << "hil: the input device file is not overwritten without confirmation\n";
-    return false;
-  }
-  if (!op.confirm("Write " + std::to_string(edited->changes.size()) + " change(s) to " + target + "?")) {
-    out << "  not written (not confirmed)\n";
-    return true;
-  }
-  const std::string temporary = target + ".hil-tmp";
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    file << edited->text;
-    if (!file) {
-      std::cerr << "hil: cannot write " << temporary << '\n';
-      return false;
-    }
-  }
-  if (auto loaded = trainer::config::load_device(temporary); !loaded) {
-    std::filesystem::remove(temporary, ignored);
-    std::cerr << "hil: the corrected device file would not load, nothing written: "
-              << loaded.error().message << '\n';
-    return false;
-  }
-  std::filesystem::rename(temporary, target, ignored);
-  if (ignored) {
-    std::cerr << "hil: cannot replace " << target << ": " << ignored.message() << '\n';
-    return false;
-  }
-  report.corrected_file = target;
-  for (const hil::LineChange& change : edited->changes) report.applied_changes.push_back(change.describe(target));
-  out << "  written: " << target << '\n';
-  return true;
-}
 
 bool write_text(const std::string& path, const std::string& text) {
   std::ofstream file(path, std::ios::binary | std::ios::trunc);
@@ -256,7 +186,7 @@ int run(const std::string& command, const Options& options, const std::string& a
     }
     context.device = std::move(*device);
     report.run.device_path = options.device_file;
-    report.run.device_sha256 = hil::sha256_hex(read_file(options.device_file));
+    report.run.device_sha256 = hil::sha256_hex(hil::read_whole_file(options.device_file));
   }
   hil::OperatorOptions operator_options;
   operator_options.yes = options.yes;
@@ -290,7 +220,13 @@ int run(const std::string& command, const Options& options, const std::string& a
     return kExitSetup;
   }
   bool ok = true;
-  if (context.device) ok = write_corrections(options, op, report, out);
+  if (context.device) {
+    hil::WriteRequest request;
+    request.device_file = options.device_file;
+    if (options.fix) request.target = options.device_file;
+    if (!options.write_device.empty()) request.target = options.write_device;
+    ok = hil::write_corrections(request, op, report, out, std::cerr);
+  }
   if (!options.report_json.empty() && !write_text(options.report_json, hil::to_json(report).dump(2) + "\n")) {
     std::cerr << "hil: cannot write " << options.report_json << '\n';
     ok = false;
