@@ -7,7 +7,9 @@
 //            [--interface NAME] [--fault SPEC]... [--events FILE|-] [--vendor-id N]
 //            [--product-code N] [--rated-torque-scale F] [--exit-after-idle S] [--max-seconds S]
 //            [--period-us N] [--slow-motion N] [--no-stdin] [--fd N]
+//            [--miswire reverse_encoder|reverse_motor:node=N]... [--node-id-map A=B]...
 //
+// --miswire / --node-id-map present a wrongly wired bench for `hil` (docs/simdrive.md).
 // Fault SPECs (hal_simdrive/fault.hpp) on the command line are applied at once or scheduled
 // (at_sync / at_s count from the first NMT start); the same syntax on a stdin line applies a
 // fault at once. The loop waits in ppoll() on the CAN socket, stdin and a signalfd for
