@@ -1,5 +1,5 @@
 #!/bin/sh
-# The scripted bench engineer of hil_io's check in the bench VM (hil_io --act "hil_io_act.sh
+# The scripted bench engineer of hil's GPIO check in the bench VM (hil --act "hil_io_act.sh
 # MODE"): each operator action of the GPIO part done on the gpio-sim chip's simulated pulls
 # (HIL_SIM_BASE = /sys/devices/platform/<dev>/<chip>, lines estop enable drive_enable fault_lamp
 # spare at offsets 0..4).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# hil's GPIO part (tools/hil/io, hil_io driver) on a real kernel GPIO chip (gpio-sim) in the
+# hil's GPIO part (tools/hil/io, run by `hil`) on a real kernel GPIO chip (gpio-sim) in the
 # bench VM, one boot (tests/benchvm/hil_io.sh runs the cases, this script judges them):
 #  - a good bench: scan passes every [gpio] line; check passes the e-stop and enable
 #    edge-to-latch steps over TRIALS presses each and reads the outputs back;
@@ -21,8 +21,8 @@ cd "$src"
 status=0
 only=
 [ "$trials" -lt 100 ] || only=gpio-only
-for program in "$bin/hil_io" "$bin/usbgadget"; do
-  [ -x "$program" ] || { echo "hil_io_test: $program missing: build hil_io and usbgadget" >&2; exit 1; }
+for program in "$bin/hil" "$bin/usbgadget"; do
+  [ -x "$program" ] || { echo "hil_io_test: $program missing: build hil and usbgadget" >&2; exit 1; }
 done
 tools/benchvm/benchvm run --gpio-sim --smp 2 --timeout 600 --out "$work" -- \
   tests/benchvm/hil_io.sh "$bin" "$trials" "$slow" $only || status=$?
@@ -35,7 +35,8 @@ failures = []
 def load(name):
     status = int(open(os.path.join(work, name + ".status")).read())
     try:
-        sections = json.load(open(os.path.join(work, name + ".json")))
+        report = json.load(open(os.path.join(work, name + ".json")))
+        sections = report.get("scans", []) + report.get("checks", [])
     except ValueError:
         print(open(os.path.join(work, name + ".txt")).read())
         raise

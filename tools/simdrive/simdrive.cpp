@@ -7,7 +7,9 @@
 //            [--interface NAME] [--fault SPEC]... [--events FILE|-] [--vendor-id N]
 //            [--product-code N] [--rated-torque-scale F] [--exit-after-idle S] [--max-seconds S]
 //            [--period-us N] [--slow-motion N] [--no-stdin] [--fd N]
+//            [--miswire reverse_encoder|reverse_motor:node=N]... [--node-id-map A=B]...
 //
+// --miswire / --node-id-map present a wrongly wired bench for `hil` (docs/simdrive.md).
 // Fault SPECs (hal_simdrive/fault.hpp) on the command line are applied at once or scheduled
 // (at_sync / at_s count from the first NMT start); the same syntax on a stdin line applies a
 // fault at once. The loop waits in ppoll() on the CAN socket, stdin and a signalfd for
@@ -142,6 +144,14 @@ int main(int argc, char** argv) {
   cli.add_option("--max-seconds", max_seconds, "exit after this many seconds")
       ->check(CLI::PositiveNumber);
   cli.add_flag("--no-stdin", no_stdin, "do not read fault SPECs from stdin");
+  std::vector<std::string> miswire_texts;
+  std::vector<std::string> node_map_texts;
+  cli.add_option("--miswire", miswire_texts,
+                 "a wrongly wired drive (repeatable): reverse_encoder:node=N (position actual "
+                 "negated), reverse_motor:node=N (torque turns the joint the other way)");
+  cli.add_option("--node-id-map", node_map_texts,
+                 "FILE_ID=BUS_ID (repeatable): the drive the file calls node FILE_ID answers as "
+                 "node BUS_ID");
   cli.add_option(
          "--fd", inherited_fd,
          "tests: use this inherited descriptor (socketpair carrying struct can_frame) instead of "
@@ -164,6 +174,19 @@ int main(int argc, char** argv) {
     if (!overrides.product_code) {
       std::cerr << "simdrive: --product-code " << product_text
                 << ": expected a 32-bit number (0x... for hex)\n";
+      return 2;
+    }
+  }
+  ts::Miswiring miswiring;
+  for (const std::string& text : miswire_texts) {
+    if (auto parsed = ts::parse_miswire(text, miswiring); !parsed) {
+      std::cerr << "simdrive: " << parsed.error().message << '\n';
+      return 2;
+    }
+  }
+  for (const std::string& text : node_map_texts) {
+    if (auto parsed = ts::parse_node_id_map(text, miswiring); !parsed) {
+      std::cerr << "simdrive: " << parsed.error().message << '\n';
       return 2;
     }
   }
@@ -190,6 +213,10 @@ int main(int argc, char** argv) {
   if (!params) {
     std::cerr << "simdrive: " << params.error().message << '\n';
     return 1;
+  }
+  if (auto miswired = ts::apply_miswiring(miswiring, *params); !miswired) {
+    std::cerr << "simdrive: " << miswired.error().message << '\n';
+    return 2;
   }
   if (interface.empty()) interface = scene->device.canopen.interface;
   trainer::hal::socketcan::SocketCanOptions options;

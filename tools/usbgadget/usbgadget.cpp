@@ -394,6 +394,15 @@ int main(int argc, char** argv) {
   ug::EmulatorParams params;
   params.plant = trainer::app::sim_params_from(scene->device, script.empty() ? scene->trainee.script : script);
   if (params.plant.plant_substep_ns <= 0) params.plant.plant_substep_ns = 100'000;
+  // The emulated interface is wired right, as simdrive's drives are: the device file's
+  // encoder_direction / motor_direction describe the host's view of a bench and are what hil
+  // check measures, not the emulator's wiring.
+  for (auto& instrument : params.plant.instruments) {
+    for (auto& scale : instrument.scales) {
+      scale.encoder_direction = 1;
+      scale.motor_direction = 1;
+    }
+  }
   params.frame_ns = period_us > 0 ? period_us * 1000 : scene->loop.period_ns;
   params.watchdog_ms = static_cast<std::uint16_t>(watchdog_ms);
   ug::HapticEmulator emulator(std::move(params));

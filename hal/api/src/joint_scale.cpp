@@ -36,15 +36,16 @@ double JointScale::effort_per_amp() const noexcept {
 }
 
 double JointScale::position_from_counts(std::int64_t counts) const noexcept {
-  return static_cast<double>(counts) * position_per_count();
+  return static_cast<double>(counts) * position_per_count() * encoder_sign();
 }
 
 std::int64_t JointScale::counts_from_position(double position) const noexcept {
-  return std::llround(position / position_per_count());
+  const std::int64_t counts = std::llround(position / position_per_count());
+  return encoder_direction < 0 ? -counts : counts;
 }
 
 double JointScale::current_from_effort(double effort) const noexcept {
-  return effort / effort_per_amp();
+  return effort / effort_per_amp() * motor_sign();
 }
 
 }  // namespace trainer::hal

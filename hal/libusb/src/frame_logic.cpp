@@ -37,8 +37,9 @@ core::Expected<void> UsbFrameLogic::configure(std::span<const hal::JointScale> s
     Channel& channel = channels_[i];
     channel = Channel{};
     channel.scale = scales[i];
-    channel.amps_per_effort = 1.0 / per_amp;
-    channel.effort_per_ma = per_amp * 1e-3;
+    // motor_direction -1: the current is sent negated, the reported one read back negated.
+    channel.amps_per_effort = scales[i].motor_sign() / per_amp;
+    channel.effort_per_ma = per_amp * 1e-3 * scales[i].motor_sign();
     const double limit_ma = std::floor(scales[i].current_limit_a * 1000.0);
     channel.limit_ma = static_cast<std::int16_t>(std::clamp(limit_ma, 1.0, 32767.0));
   }

@@ -17,7 +17,7 @@ struct FaultKindName {
   const char* name;
 };
 
-constexpr std::array<FaultKindName, 10> kFaultKindNames = {{
+constexpr std::array<FaultKindName, 11> kFaultKindNames = {{
     {FaultKind::drop, "drop"},
     {FaultKind::delay, "delay"},
     {FaultKind::corrupt, "corrupt"},
@@ -28,10 +28,11 @@ constexpr std::array<FaultKindName, 10> kFaultKindNames = {{
     {FaultKind::lost_sync, "lost_sync"},
     {FaultKind::reboot, "reboot"},
     {FaultKind::clear, "clear"},
+    {FaultKind::push, "push"},
 }};
 
 constexpr std::string_view kFaultKindList =
-    "drop, delay, corrupt, silent, bus_off, emcy, encoder_jump, lost_sync, reboot, clear";
+    "drop, delay, corrupt, silent, bus_off, emcy, encoder_jump, lost_sync, reboot, clear, push";
 
 std::string_view trim_spaces(std::string_view text) {
   while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
@@ -174,6 +175,16 @@ core::Expected<FaultSpec> parse_fault_spec(std::string_view text) {
         return core::make_error(bad + ": expected a non-zero number of encoder counts");
       }
       spec.counts = static_cast<std::int32_t>(number);
+    } else if (key == "move" && spec.kind == FaultKind::push) {
+      const std::string copy(value);
+      char* end = nullptr;
+      const double move = std::strtod(copy.c_str(), &end);
+      if (copy.empty() || end != copy.c_str() + copy.size() || !std::isfinite(move) ||
+          move == 0.0 || std::fabs(move) > 10.0) {
+        return core::make_error(bad + ": expected a non-zero joint displacement, rad or m, "
+                                      "within +-10");
+      }
+      spec.move = move;
     } else if (key == "mode" && spec.kind == FaultKind::corrupt) {
       if (value == "length") {
         spec.corrupt_mode = CorruptMode::length;
@@ -193,7 +204,7 @@ core::Expected<FaultSpec> parse_fault_spec(std::string_view text) {
     } else {
       return core::make_error(quoted + "unknown key '" + key + "' for " + to_string(spec.kind) +
                               " (keys: node, at_sync, at_s, count; delay: ms; emcy: code; "
-                              "encoder_jump: counts; corrupt: mode, byte, mask)");
+                              "encoder_jump: counts; corrupt: mode, byte, mask; push: move)");
     }
   }
   if (spec.at_sync && spec.at_ns)
@@ -206,6 +217,9 @@ core::Expected<FaultSpec> parse_fault_spec(std::string_view text) {
     return core::make_error(quoted + "ms=D missing: how long to hold TPDOs back");
   if (spec.kind == FaultKind::encoder_jump && spec.counts == 0) {
     return core::make_error(quoted + "counts=N missing: by how many counts position actual jumps");
+  }
+  if (spec.kind == FaultKind::push && spec.move == 0.0) {
+    return core::make_error(quoted + "move=D missing: how far the hand pushes the joint (rad or m)");
   }
   return spec;
 }
@@ -238,7 +252,8 @@ std::size_t format_fault_spec(const FaultSpec& spec, std::span<char> out) noexce
   }
   const bool lasting = spec.kind == FaultKind::drop || spec.kind == FaultKind::delay ||
                        spec.kind == FaultKind::corrupt || spec.kind == FaultKind::silent ||
-                       spec.kind == FaultKind::lost_sync || spec.kind == FaultKind::bus_off;
+                       spec.kind == FaultKind::lost_sync || spec.kind == FaultKind::bus_off ||
+                       spec.kind == FaultKind::push;
   if (lasting && spec.count != default_count(spec.kind)) {
     key("count");
     append("%u", static_cast<unsigned>(spec.count));
@@ -255,6 +270,10 @@ std::size_t format_fault_spec(const FaultSpec& spec, std::span<char> out) noexce
     case FaultKind::encoder_jump:
       key("counts");
       append("%d", static_cast<int>(spec.counts));
+      break;
+    case FaultKind::push:
+      key("move");
+      append("%g", spec.move);
       break;
     case FaultKind::corrupt:
       key("mode");

@@ -23,7 +23,7 @@ constexpr std::int64_t kBusNoDeadline = std::numeric_limits<std::int64_t>::max()
 
 bool lasting_kind(FaultKind kind) noexcept {
   return kind == FaultKind::drop || kind == FaultKind::delay || kind == FaultKind::corrupt ||
-         kind == FaultKind::silent || kind == FaultKind::lost_sync;
+         kind == FaultKind::silent || kind == FaultKind::lost_sync || kind == FaultKind::push;
 }
 
 }  // namespace
@@ -238,6 +238,7 @@ void SimDriveBus::handle_sync() noexcept {
     count_down(faults.delay, id, "delay ended");
     count_down(faults.corrupt, id, "corrupt ended");
     count_down(faults.silent, id, "silent ended");
+    count_down(faults.push, id, "push ended");
   }
   count_down(bus_off_, 0, "bus_off ended");
 }
@@ -258,6 +259,11 @@ void SimDriveBus::write_plant() noexcept {
     (void)nodes_[i]->take_output_changed();
     const DriveOutput& output = nodes_[i]->output();
     commands_[i] = {static_cast<float>(output.effort), output.enabled};
+    if (faults_[i].push.active) {  // the hand acts whether or not the drive is on
+      commands_[i] = {static_cast<float>((output.enabled ? output.effort : 0.0) +
+                                         faults_[i].push_effort),
+                      true};
+    }
   }
   if (plant_.state() == hal::LifecycleState::active)
     (void)plant_.write_actuators(std::span(commands_.data(), nodes_.size()));
@@ -352,6 +358,16 @@ void SimDriveBus::apply_fault(const FaultSpec& spec) noexcept {
         faults.corrupt_mask = spec.corrupt_mask;
         break;
       case FaultKind::silent: faults.silent = lasting; break;
+      case FaultKind::push: {
+        // The hand's spring pulls the joint toward its target; pushing `move` beyond it at rest
+        // takes hand_stiffness * move.
+        const std::size_t per_instrument = hal::sim::kJointsPerInstrument;
+        const auto& instrument = params_.plant.instruments[index / per_instrument];
+        faults.push = lasting;
+        faults.push_effort = instrument.plant[index % per_instrument].hand_stiffness * spec.move;
+        write_plant();
+        break;
+      }
       default: faults.lost_sync = lasting; break;
     }
     return;
@@ -370,8 +386,9 @@ void SimDriveBus::apply_fault(const FaultSpec& spec) noexcept {
 void SimDriveBus::clear_faults(std::size_t index, const char* why) noexcept {
   NodeFaults& faults = faults_[index];
   const bool any = faults.drop.active || faults.delay.active || faults.corrupt.active ||
-                   faults.silent.active || faults.lost_sync.active;
+                   faults.silent.active || faults.lost_sync.active || faults.push.active;
   faults = NodeFaults{};
+  write_plant();
   if (any) log_bus(EventKind::fault_cleared, nodes_[index]->node_id(), 0, 0, nullptr, why);
 }
 

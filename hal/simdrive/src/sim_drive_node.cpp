@@ -69,6 +69,11 @@ core::Expected<std::unique_ptr<SimDriveNode>> SimDriveNode::create(const SimDriv
     return core::make_error("simulated drive: node id " + std::to_string(params.node_id) +
                             " outside 1..127");
   }
+  if (params.software_version.size() > co::kMaxStringBytes) {
+    return core::make_error(who + "software version '" + params.software_version +
+                            "' longer than " + std::to_string(co::kMaxStringBytes) +
+                            " characters (0x100A)");
+  }
   if (params.device_name.size() > co::kMaxStringBytes) {
     return core::make_error(who + "device name '" + params.device_name + "' longer than " +
                             std::to_string(co::kMaxStringBytes) + " characters (0x1008)");
@@ -200,7 +205,12 @@ core::Expected<void> SimDriveNode::add_objects() {
                           .max = std::nullopt});
     if (!added) return added;
   }
-  return od_.add_string(co::kObjectDeviceName, 0, co::Access::constant, params_.device_name);
+  if (auto added = od_.add_string(co::kObjectDeviceName, 0, co::Access::constant,
+                                  params_.device_name);
+      !added) {
+    return added;
+  }
+  return od_.add_string(kObjectSoftwareVersion, 0, co::Access::constant, params_.software_version);
 }
 
 // ------------------------------------------------------------------------------ resets

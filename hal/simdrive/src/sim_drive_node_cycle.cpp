@@ -128,7 +128,9 @@ void SimDriveNode::refresh_torque() noexcept {
   power_.set_internal_limit_active(limited);
   torque_actual_permille_ = co::torque_to_permille(current_a * scale.torque_constant_nm_per_a,
                                                    params_.motor_rated_torque_mnm);
-  const DriveOutput next{current_a * scale.effort_per_amp(), power_.drive_function_enabled()};
+  const double motor_sign = params_.reverse_motor ? -1.0 : 1.0;
+  const DriveOutput next{current_a * scale.effort_per_amp() * motor_sign,
+                         power_.drive_function_enabled()};
   if (next.effort != output_.effort || next.enabled != output_.enabled) {
     output_ = next;
     output_changed_ = true;
@@ -363,11 +365,14 @@ void SimDriveNode::on_sync(const PlantSample& sample, std::int64_t now_ns,
     }
   }
   // Actual values at the SYNC instant (a 32-bit position wraps as a real encoder's does).
-  const std::int64_t counts = sample.position_counts + encoder_offset_counts_;
+  const double encoder_sign = params_.reverse_encoder ? -1.0 : 1.0;
+  const std::int64_t counts =
+      (params_.reverse_encoder ? -sample.position_counts : sample.position_counts) +
+      encoder_offset_counts_;
   (void)od_.set<std::int32_t>(
       co::kObjectPositionActual, 0,
       static_cast<std::int32_t>(static_cast<std::uint32_t>(counts & 0xFFFFFFFF)));
-  const double velocity = std::clamp(std::round(sample.velocity_counts_per_s),
+  const double velocity = std::clamp(std::round(sample.velocity_counts_per_s * encoder_sign),
                                      static_cast<double>(std::numeric_limits<std::int32_t>::min()),
                                      static_cast<double>(std::numeric_limits<std::int32_t>::max()));
   (void)od_.set<std::int32_t>(co::kObjectVelocityActual, 0, static_cast<std::int32_t>(velocity));

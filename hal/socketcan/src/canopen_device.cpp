@@ -5,7 +5,7 @@
 #include <cstring>
 #include <utility>
 
-#include "canopen_setup.hpp"
+#include "trainer/hal_socketcan/canopen_setup.hpp"
 #include "trainer/hal_canopen/bus_error.hpp"
 #include "trainer/hal_canopen/cia402.hpp"
 #include "trainer/hal_canopen/emcy.hpp"
@@ -349,9 +349,10 @@ hal::ReturnCode CanopenDevice::read_actuator_status(std::span<hal::ActuatorStatu
     const co::PowerState power = co::decode_statusword(drive.statusword);
     hal::ActuatorStatus& status = out[i];
     status.enabled = power == co::PowerState::operation_enabled;
-    status.applied_effort = status.enabled ? static_cast<float>(drive.torque_actual_permille *
-                                                                drive.effort_per_permille)
-                                           : 0.0F;
+    status.applied_effort =
+        status.enabled ? static_cast<float>(drive.torque_actual_permille * drive.effort_per_permille *
+                                            params_.drives[i].scale.motor_sign())
+                       : 0.0F;
     status.saturated = drive.saturated;
     status.fault =
         power == co::PowerState::fault || power == co::PowerState::fault_reaction_active;
@@ -412,7 +413,10 @@ hal::ReturnCode CanopenDevice::write_actuators(
     rejected = rejected || !finite;
     const bool enable = command.enable && finite && !latched();
     drive.controlword = next_controlword(drive, enable);
-    double permille = enable ? static_cast<double>(command.effort) / drive.effort_per_permille : 0.0;
+    // motor_direction -1: the motor turns the joint negative for a positive torque.
+    double permille = enable ? static_cast<double>(command.effort) / drive.effort_per_permille *
+                                   params_.drives[i].scale.motor_sign()
+                             : 0.0;
     const auto limit = static_cast<double>(drive.max_torque_permille);
     drive.saturated = std::fabs(permille) > limit;
     permille = std::clamp(permille, -limit, limit);

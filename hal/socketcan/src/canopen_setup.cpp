@@ -1,4 +1,4 @@
-#include "canopen_setup.hpp"
+#include "trainer/hal_socketcan/canopen_setup.hpp"
 
 #include <array>
 #include <cmath>
@@ -133,6 +133,21 @@ core::Expected<std::uint32_t> SetupBus::read(const std::string& who, std::uint8_
     value |= static_cast<std::uint32_t>(bytes[i]) << (8 * i);
   }
   return value;
+}
+
+core::Expected<std::vector<std::uint8_t>> SetupBus::read_bytes(const std::string& who,
+                                                               std::uint8_t node,
+                                                               std::uint16_t index,
+                                                               std::uint8_t sub,
+                                                               std::size_t max_bytes) {
+  std::vector<std::uint8_t> bytes(max_bytes);
+  if (auto started = sdo_.start_upload(node, index, sub, bytes, steady_now_ns()); !started) {
+    return core::make_error(who + ": SDO read of " + object_name(index, sub) +
+                            " could not start: " + started.detail());
+  }
+  if (auto done = run_transfer(who, "read", index, sub); !done) return std::move(done).error();
+  bytes.resize(std::min(sdo_.transferred_bytes(), max_bytes));
+  return bytes;
 }
 
 core::Expected<void> reset_and_wait_for_boot(SetupBus& bus, const CanopenDeviceParams& params) {

@@ -42,6 +42,8 @@ hal::JointScale joint_scale(const JointConfig& joint) noexcept {
   scale.capstan_radius_m = joint.capstan_radius_m;
   scale.torque_constant_nm_per_a = joint.torque_constant_nm_per_a;
   scale.current_limit_a = joint.current_limit_a;
+  scale.encoder_direction = joint.encoder_direction;
+  scale.motor_direction = joint.motor_direction;
   return scale;
 }
 
@@ -186,6 +188,17 @@ CanopenJointConfig read_canopen_joint(TableReader& table, NodeOwners& owners,
   return drive;
 }
 
+// encoder_direction / motor_direction: 1 or -1 (default 1); 0 is refused like any value
+// outside the set, with file:line, key, value and what was expected.
+std::int8_t read_direction(TableReader& table, std::string_view key, std::string_view meaning) {
+  const std::int64_t value = table.optional_int(key, 1, IntRange{-1, 1}, meaning);
+  if (value == 0) {
+    table.fail_value(key, ": expected 1 or -1 (" + std::string(meaning) + ")");
+    return 1;
+  }
+  return static_cast<std::int8_t>(value);
+}
+
 JointConfig read_joint(TableReader& table, hal::JointKind kind, NodeOwners* owners,
                        ErrorSink& errors) {
   const bool prismatic = kind == hal::JointKind::prismatic;
@@ -212,6 +225,12 @@ JointConfig read_joint(TableReader& table, hal::JointKind kind, NodeOwners* owne
                                                kHandStiffnessRange, keys.stiffness_unit);
   joint.hand_damping = table.optional_double(keys.damping_key, keys.default_damping,
                                              kHandDampingRange, keys.damping_unit);
+  joint.encoder_direction = read_direction(table, "encoder_direction",
+                                           "+1 as designed, -1 when the encoder counts down "
+                                           "for a positive joint motion");
+  joint.motor_direction = read_direction(table, "motor_direction",
+                                         "+1 as designed, -1 when a positive motor torque "
+                                         "turns the joint negative");
   if (owners != nullptr) joint.canopen = read_canopen_joint(table, *owners, errors);
   if (errors.ok() && joint.min_position >= joint.max_position) {
     table.fail_value(keys.max_key, " is not greater than " + std::string(keys.min_key) + " = " +

@@ -284,6 +284,40 @@ TEST_F(FrameLogicTest, EffortBecomesCurrentClippedToTheLimit) {
   EXPECT_FALSE(status[2].enabled);
 }
 
+// The device file's encoder_direction / motor_direction (-1: wired reversed): counts read
+// negated, current sent negated, the effort read back with the joint's sign again.
+TEST(FrameLogicDirections, ReversedEncoderAndMotorAreCompensated) {
+  hal::JointScale reversed = revolute_scale();
+  reversed.encoder_direction = -1;
+  reversed.motor_direction = -1;
+  const std::array<hal::JointScale, 1> scales{reversed};
+  UsbFrameLogic logic;
+  ASSERT_TRUE(logic.configure(scales, 2));
+  const double per_amp = reversed.effort_per_amp();
+  const std::array<hal::ActuatorCommand, 1> commands{{{static_cast<float>(0.5 * per_amp), true}}};
+  RawOutReport out;
+  ASSERT_TRUE(logic.build_out(commands, false, 0, out));
+  proto::OutReport report;
+  ASSERT_EQ(proto::decode(out.bytes, report), proto::DecodeStatus::ok);
+  EXPECT_EQ(report.current_ma[0], -500);
+  proto::InReport in_report;
+  in_report.sequence = 1;
+  in_report.out_sequence_applied = 1;
+  in_report.status = proto::kStatusEnabled;
+  in_report.channel_count = 1;
+  in_report.counts[0] = 4096 * 15;  // one joint revolution on the encoder
+  RawInReport raw;
+  raw.length = static_cast<std::uint16_t>(proto::encode(in_report, raw.bytes));
+  raw.index = 1;
+  logic.on_cycle(&raw);
+  std::array<hal::EncoderSample, 1> samples{};
+  logic.fill_encoders(samples);
+  EXPECT_NEAR(samples[0].position, -2.0 * M_PI, 1e-5) << "the encoder counts the other way";
+  std::array<hal::ActuatorStatus, 1> status{};
+  logic.fill_status(status);
+  EXPECT_NEAR(status[0].applied_effort, 0.5 * per_amp, 1e-6);
+}
+
 TEST_F(FrameLogicTest, NonFiniteEffortSendsZeroAndReportsIt) {
   RawOutReport out;
   const std::array<hal::ActuatorCommand, 3> commands{{{NAN, true}, {0.1F, true}, {0.0F, true}}};

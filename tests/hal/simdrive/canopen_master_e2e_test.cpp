@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <functional>
 #include <optional>
 #include <thread>
 
@@ -34,8 +35,11 @@ using test_support::monotonic_now;
 class MasterAndDrives {
  public:
   // sync_period_ns: the device file's canopen.sync_period_us (0 = every loop period).
+  // `miswiring`: how simdrive's drives are wired; `edit`: changes of the master's device file.
   explicit MasterAndDrives(const tools::simdrive::IdentityOverrides& overrides = {},
-                           std::int64_t sync_period_ns = 0)
+                           std::int64_t sync_period_ns = 0,
+                           const tools::simdrive::Miswiring& miswiring = {},
+                           const std::function<void(config::DeviceConfig&)>& edit = {})
       : device_(test_support::vcan_device()) {
     device_.canopen.sync_period_ns = sync_period_ns;
     auto pair = socketcan::make_transport_pair("master", "simdrive");
@@ -43,6 +47,8 @@ class MasterAndDrives {
     auto params = tools::simdrive::bus_params_from(device_, "builtin:hold",
                                                    test_support::kLoopPeriodNs, overrides);
     EXPECT_TRUE(params) << (params ? "" : params.error().message);
+    EXPECT_TRUE(tools::simdrive::apply_miswiring(miswiring, *params));
+    if (edit) edit(device_);  // the master's file only: simdrive's wiring is set above
     auto bus = SimDriveBus::create(std::move(*params), std::move(pair->b));
     EXPECT_TRUE(bus) << (bus ? "" : bus.error().message);
     bus_ = std::move(*bus);
@@ -173,6 +179,46 @@ TEST(CanopenMasterAgainstSimDrive, CyclesEnableEveryDriveAndTheCommandedEffortsR
                   static_cast<double>(test_support::kLoopPeriodNs) * 1e-9,
               1e-9);
   EXPECT_GE(rig.bus().syncs_since_start(), 400U);
+}
+
+// A drive wired with its encoder and motor reversed (simdrive --miswire) works as designed once
+// the device file says so (encoder_direction = motor_direction = -1): the master negates the
+// position it reads and the torque it sends and reads back. Without those keys the same drive
+// pushes the wrong way.
+TEST(CanopenMasterAgainstSimDrive, TheFilesDirectionsCompensateAReversedEncoderAndMotor) {
+  tools::simdrive::Miswiring miswiring;
+  ASSERT_TRUE(tools::simdrive::parse_miswire("reverse_encoder:node=2", miswiring));
+  ASSERT_TRUE(tools::simdrive::parse_miswire("reverse_motor:node=2", miswiring));
+  for (const bool compensated : {true, false}) {
+    MasterAndDrives rig({}, 0, miswiring, [&](config::DeviceConfig& device) {
+      auto& yaw = device.instruments[0].joints[config::index(config::JointId::yaw)];
+      yaw.encoder_direction = compensated ? -1 : 1;
+      yaw.motor_direction = compensated ? -1 : 1;
+    });
+    rig.bring_up();
+    ASSERT_FALSE(HasFatalFailure());
+    rig.command(0.25);  // channel 1 (left.yaw, node 2): -0.25 of its maximum effort
+    for (int cycle = 0; cycle < 100; ++cycle) (void)rig.cycle();
+    const std::vector<hal::EncoderSample> samples = rig.samples();
+    const std::vector<hal::ActuatorStatus> reported = rig.status();
+    rig.stop_drives();
+    const socketcan::DriveParams& drive = rig.master().params().drives[1];
+    const double commanded = -0.25 * drive.scale.max_effort();
+    const double quantum = drive.motor_rated_torque_nm * 1e-3 * drive.scale.effort_per_amp() /
+                           drive.scale.torque_constant_nm_per_a;
+    const double applied = rig.bus().plant().applied_effort(1);
+    const double position = rig.bus().plant().true_position(1);
+    if (compensated) {
+      EXPECT_NEAR(applied, commanded, quantum);
+      EXPECT_NEAR(reported[1].applied_effort, commanded, quantum);
+      // The sample is one SYNC old; the joint moves slowly against the hand.
+      EXPECT_NEAR(samples[1].position, position, 0.01);
+      EXPECT_LT(position, -0.005) << "pushed negative, read negative";
+    } else {
+      EXPECT_NEAR(applied, -commanded, quantum) << "the reversed motor pushes the other way";
+      EXPECT_NEAR(samples[1].position, -position, 0.01) << "and the reversed encoder reads it negated";
+    }
+  }
 }
 
 TEST(CanopenMasterAgainstSimDrive, TheMastersCyclesMakeNoHeapAllocations) {

@@ -46,6 +46,8 @@ TEST(FaultSpec, TheExamplesOfTheBriefParse) {
   EXPECT_EQ(spec.count, 1U) << "a corruption lasts one SYNC unless told";
   EXPECT_EQ(parsed("lost_sync:node=1").count, 1U);
   EXPECT_EQ(parsed("encoder_jump:node=1,counts=-4096").counts, -4096);
+  EXPECT_DOUBLE_EQ(parsed("push:node=2,move=-0.05,count=300").move, -0.05);
+  EXPECT_EQ(parsed("push:node=2,move=0.1").count, 0U);
   EXPECT_EQ(parsed("emcy:node=9").code, 0x2310) << "continuous over-current by default";
   EXPECT_EQ(parsed("clear").node_id, 0);
   EXPECT_EQ(parsed("reboot:node=127").node_id, 127);
@@ -61,6 +63,9 @@ TEST(FaultSpec, MistakesAreRefusedNamingTheKeyAndWhatWasExpected) {
   EXPECT_NE(refusal("drop:node=2,ms=3").find("unknown key 'ms'"), std::string::npos);
   EXPECT_NE(refusal("emcy:node=2,code=0").find("0x0001..0xFFFF"), std::string::npos);
   EXPECT_NE(refusal("encoder_jump:node=2").find("counts=N missing"), std::string::npos);
+  EXPECT_NE(refusal("push:node=2").find("move=D missing"), std::string::npos);
+  EXPECT_NE(refusal("push:node=2,move=0").find("expected a non-zero joint displacement"),
+            std::string::npos);
   EXPECT_NE(refusal("drop:node=2,at_sync=0").find("SYNC count >= 1"), std::string::npos);
   EXPECT_NE(refusal("drop:node=2,at_s=-1").find("seconds"), std::string::npos);
   EXPECT_NE(refusal("drop:node=2,at_s=1,at_sync=3").find("both"), std::string::npos);
@@ -74,6 +79,7 @@ TEST(FaultSpec, FormattingGivesTheCanonicalSpecBack) {
        {"emcy:node=3,at_sync=500,code=0x2310", "silent:node=2,at_s=1.500", "drop:node=1,count=5",
         "bus_off:at_sync=800", "delay:node=4,ms=12", "corrupt:node=5,mode=length",
         "corrupt:node=5,count=3,mode=bits,byte=7,mask=0x81", "encoder_jump:node=1,counts=-4096",
+        "push:node=2,count=300,move=-0.05",
         "lost_sync:node=1,count=2", "reboot:node=6", "clear", "clear:node=2"}) {
     EXPECT_EQ(format_fault_spec(parsed(text)), text);
   }

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "simdrive_test_support.hpp"
+#include "simdrive_setup.hpp"
 #include "trainer/core/alloc_counter.hpp"
 
 namespace trainer::hal::simdrive {
@@ -430,6 +431,96 @@ TEST(SimDriveBusRt, PollDoesNotTouchTheHeapOverThousandsOfSyncCycles) {
   EXPECT_TRUE(is_operation_enabled(h.bus().node(0).statusword()));
   EXPECT_EQ(h.bus().node_stats(1).tpdos_dropped, 5U);
   EXPECT_EQ(h.bus().node_stats(0).tpdos_delayed, 20U);
+}
+
+}  // namespace
+}  // namespace trainer::hal::simdrive
+
+// ---------------------------------------------------------------- miswiring and the hand (hil)
+
+namespace trainer::hal::simdrive {
+namespace {
+
+using namespace test_support;  // NOLINT: test fixtures
+
+TEST(SimDriveMiswiring, AReversedEncoderReportsThePositionNegated) {
+  SimDriveBusParams params = test_bus_params();
+  params.nodes[0].reverse_encoder = true;
+  DriveHarness h(std::move(params));
+  running_drives(h, 3);
+  const hal::JointScale& scale = h.bus().params().plant.instruments[0].scales[0];
+  for (int i = 0; i < 3; ++i) {
+    const auto frames = running_sync(h);
+    const auto reported = static_cast<std::int32_t>(le32(with_id(frames, 0x181).at(0), 2));
+    EXPECT_EQ(reported, -scale.counts_from_position(h.bus().plant().true_position(0)));
+    EXPECT_NE(reported, 0);
+  }
+}
+
+TEST(SimDriveMiswiring, AReversedMotorTurnsTheJointTheOtherWay) {
+  SimDriveBusParams params = test_bus_params();
+  params.nodes[1].reverse_motor = true;
+  DriveHarness h(std::move(params));
+  running_drives(h, 3);  // both commanded +300 permille
+  EXPECT_GT(h.bus().plant().applied_effort(0), 0.0);
+  EXPECT_LT(h.bus().plant().applied_effort(1), 0.0);
+  EXPECT_GT(static_cast<std::int16_t>(h.bus().node(1).torque_actual_permille()), 0)
+      << "the drive's own torque actual keeps the commanded sign";
+}
+
+TEST(SimDriveMiswiring, APushMovesTheJointByAboutItsMoveWithTheDrivesOff) {
+  DriveHarness h;
+  running_drives(h, 3);
+  const auto idle = [&] {
+    return h.sync({DriveHarness::rpdo1(1, 0x06, 0), DriveHarness::rpdo1(2, 0x06, 0)});
+  };
+  for (int i = 0; i < 300; ++i) (void)idle();
+  const double before = h.bus().plant().true_position(0);
+  const double other_before = h.bus().plant().true_position(1);
+  (void)fault_now(h, "push:node=1,move=0.05,count=400");
+  for (int i = 0; i < 300; ++i) (void)idle();
+  EXPECT_NEAR(h.bus().plant().true_position(0) - before, 0.05, 0.01);
+  EXPECT_NEAR(h.bus().plant().true_position(1), other_before, 0.001) << "only node 1's joint";
+  for (int i = 0; i < 400; ++i) (void)idle();  // the push ended after its 400 SYNCs
+  EXPECT_NEAR(h.bus().plant().true_position(0), before, 0.01);
+}
+
+// simdrive's --miswire / --node-id-map (tools/simdrive simdrive_setup).
+TEST(SimDriveMiswiring, OptionsParseApplyAndRefuseWhatCannotBeWired) {
+  namespace ts = trainer::tools::simdrive;
+  ts::Miswiring miswiring;
+  ASSERT_TRUE(ts::parse_miswire("reverse_encoder:node=2", miswiring));
+  ASSERT_TRUE(ts::parse_miswire("reverse_motor:node=4", miswiring));
+  ASSERT_TRUE(ts::parse_node_id_map("3=13", miswiring));
+  SimDriveBusParams params = test_bus_params();
+  ASSERT_TRUE(ts::apply_miswiring(miswiring, params));
+  EXPECT_TRUE(params.nodes[1].reverse_encoder);
+  EXPECT_FALSE(params.nodes[0].reverse_encoder);
+  EXPECT_TRUE(params.nodes[3].reverse_motor);
+  EXPECT_EQ(params.nodes[2].node_id, 13);
+  EXPECT_EQ(params.nodes[2].identity.serial_number, 1003U) << "the same drive, another id";
+
+  const auto refusal = [](auto&& result) {
+    return result ? std::string() : result.error().message;
+  };
+  ts::Miswiring bad;
+  EXPECT_EQ(refusal(ts::parse_miswire("reverse_encoder:node=0", bad)),
+            "--miswire 'reverse_encoder:node=0': expected KIND:node=N with N a node id 1..127");
+  EXPECT_EQ(refusal(ts::parse_miswire("swap:node=2", bad)),
+            "--miswire 'swap:node=2': unknown kind 'swap': expected reverse_encoder or "
+            "reverse_motor");
+  EXPECT_EQ(refusal(ts::parse_node_id_map("3-13", bad)),
+            "--node-id-map '3-13': expected FILE_ID=BUS_ID, both node ids 1..127 (e.g. 3=13)");
+  ts::Miswiring clash;
+  ASSERT_TRUE(ts::parse_node_id_map("3=2", clash));
+  SimDriveBusParams clash_params = test_bus_params();
+  EXPECT_EQ(refusal(ts::apply_miswiring(clash, clash_params)),
+            "--node-id-map: two drives would answer as node 2");
+  ts::Miswiring absent;
+  ASSERT_TRUE(ts::parse_miswire("reverse_motor:node=40", absent));
+  SimDriveBusParams absent_params = test_bus_params();
+  EXPECT_EQ(refusal(ts::apply_miswiring(absent, absent_params)),
+            "--miswire reverse_motor: node 40 is not a drive of the device file");
 }
 
 }  // namespace

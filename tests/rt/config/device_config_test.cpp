@@ -80,6 +80,32 @@ TEST(SimDeviceFile, LoadsWithSiValues) {
   }
 }
 
+// encoder_direction / motor_direction reach hal::JointScale: -1 negates counts <-> position
+// both ways (a round trip through the sim plant is exact, so simulated benches do not change)
+// and the motor sign a backend applies to effort <-> current.
+TEST(JointScaleDirections, ReversedEncoderAndMotorFlipSigns) {
+  JointConfig joint;
+  joint.counts_per_rev = 4096;
+  joint.gear_ratio = 15.0;
+  joint.torque_constant_nm_per_a = 0.03;
+  joint.current_limit_a = 3.0;
+  const hal::JointScale normal = joint_scale(joint);
+  joint.encoder_direction = -1;
+  joint.motor_direction = -1;
+  const hal::JointScale reversed = joint_scale(joint);
+  EXPECT_EQ(reversed.encoder_direction, -1);
+  EXPECT_EQ(normal.counts_from_position(0.1), -reversed.counts_from_position(0.1));
+  EXPECT_DOUBLE_EQ(normal.position_from_counts(977), -reversed.position_from_counts(977));
+  for (const double position : {-0.55, -0.1, 0.0, 0.123456, 0.6}) {
+    EXPECT_EQ(reversed.position_from_counts(reversed.counts_from_position(position)),
+              normal.position_from_counts(normal.counts_from_position(position)));
+  }
+  EXPECT_DOUBLE_EQ(normal.current_from_effort(0.45), 1.0);
+  EXPECT_DOUBLE_EQ(reversed.current_from_effort(0.45), -1.0);
+  EXPECT_DOUBLE_EQ(reversed.motor_sign(), -1.0);
+  EXPECT_DOUBLE_EQ(reversed.max_effort(), normal.max_effort());  // limits stay positive
+}
+
 // ---------------------------------------------------------------- a minimal file
 
 std::string joint_text(std::string_view instrument_joint, bool prismatic) {
@@ -133,6 +159,8 @@ TEST_F(DeviceFileTest, MinimalFileGetsDocumentedDefaultsAndConversions) {
   EXPECT_EQ(instrument.up_axis, (Vec3{0.0, 1.0, 0.0}));
   // Integers accepted for reals.
   const auto& pitch = instrument.joints[index(JointId::pitch)];
+  EXPECT_EQ(pitch.encoder_direction, 1);  // default: wired as designed
+  EXPECT_EQ(pitch.motor_direction, 1);
   EXPECT_DOUBLE_EQ(pitch.gear_ratio, 10.0);
   EXPECT_DOUBLE_EQ(pitch.current_limit_a, 2.0);
   EXPECT_DOUBLE_EQ(pitch.min_position, -1.0);
@@ -366,7 +394,18 @@ const DeviceErrorCase kDeviceErrorCases[] = {
     {"typo_in_key", "current_limit_a = 3.0", "current_limt_a = 3.0",
      "unknown key 'instrument[0].pitch.current_limt_a' (known: counts_per_rev, gear_ratio, "
      "torque_constant_nm_per_a, current_limit_a, min_rad, max_rad, inertia_kg_m2, "
-     "hand_stiffness_nm_per_rad, hand_damping_nms_per_rad); did you mean 'current_limit_a'?"},
+     "hand_stiffness_nm_per_rad, hand_damping_nms_per_rad, encoder_direction, motor_direction); "
+     "did you mean 'current_limit_a'?"},
+    {"encoder_direction_zero", "hand_damping_nms_per_rad = 0.1",
+     "hand_damping_nms_per_rad = 0.1\nencoder_direction = 0",
+     "instrument[0].pitch.encoder_direction = 0: expected 1 or -1 (+1 as designed, -1 when the "
+     "encoder counts down for a positive joint motion)",
+     1},
+    {"motor_direction_range", "hand_damping_nms_per_rad = 0.1",
+     "hand_damping_nms_per_rad = 0.1\nmotor_direction = 2",
+     "instrument[0].pitch.motor_direction = 2 is out of range: expected -1 to 1 (+1 as designed, "
+     "-1 when a positive motor torque turns the joint negative)",
+     1},
     {"prismatic_key_on_revolute_joint", "gear_ratio = 15.0",
      "gear_ratio = 15.0\ncapstan_radius_m = 0.01",
      "unknown key 'instrument[0].pitch.capstan_radius_m' (known: ", 1},

@@ -10,6 +10,9 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 #include "trainer/config/device.hpp"
 #include "trainer/config/scene.hpp"
@@ -26,10 +29,31 @@ struct IdentityOverrides {
   double rated_torque_scale = 1.0;  // 0x6076 = the file's rated torque times this
 };
 
+// A bench wired wrongly (the program's --miswire and --node-id-map), for testing `hil`:
+//   reverse_encoder:node=N  the drive of node N reports its position (and velocity) negated
+//   reverse_motor:node=N    the drive of node N turns its joint the other way
+//   --node-id-map A=B       the drive the file calls node A answers as node B
+// Node numbers are the device file's ids (before any map).
+struct Miswiring {
+  std::vector<std::uint8_t> reverse_encoder;
+  std::vector<std::uint8_t> reverse_motor;
+  std::vector<std::pair<std::uint8_t, std::uint8_t>> node_id_map;  // file id -> bus id
+};
+// Adds one --miswire SPEC / one --node-id-map A=B to `out`; errors name the text and what was
+// expected.
+core::Expected<void> parse_miswire(std::string_view text, Miswiring& out);
+core::Expected<void> parse_node_id_map(std::string_view text, Miswiring& out);
+// Applies `miswiring` to the drives of `params` (built by bus_params_from). Errors: a node the
+// file does not have, a mapped id another drive already uses.
+core::Expected<void> apply_miswiring(const Miswiring& miswiring,
+                                     hal::simdrive::SimDriveBusParams& params);
+
 // The drives of `device` (backend "canopen") with `trainee_script` as the simulated hand.
 // Node i drives channel i = instrument * 5 + joint; identity, rated torque (rounded to mN·m)
 // and node id from each joint's [instrument.<joint>] keys; revision from the file when given
-// (else 1), serial number = node id. Plant time per SYNC: canopen.sync_period_us, or when that
+// (else 1), serial number = node id. The file's encoder_direction / motor_direction are NOT
+// simulated (they say how the master compensates a wiring; the simulated wiring is correct
+// unless Miswiring says otherwise). Plant time per SYNC: canopen.sync_period_us, or when that
 // is 0 ("SYNC every loop period") `loop_period_ns`, the trainer's loop period.
 core::Expected<hal::simdrive::SimDriveBusParams> bus_params_from(
     const config::DeviceConfig& device, const std::string& trainee_script,

@@ -9,7 +9,7 @@
 //   at_s (fires that many seconds, monotonic clock, after the first NMT start), without either
 //   the fault fires when injected; count (SYNCs the fault lasts; 0 = until cleared),
 //   ms (delay: how long TPDOs are held back), code (emcy), counts (encoder_jump),
-//   mode = length | bits, byte, mask (corrupt).
+//   mode = length | bits, byte, mask (corrupt), move (push: joint-side rad or m, non-zero).
 // What each kind does on the bus: docs/simdrive.md and SimDriveBus (sim_drive_bus.hpp).
 //
 // Parsing allocates (setup and the program's command line); a parsed FaultSpec is a plain
@@ -38,6 +38,9 @@ enum class FaultKind : std::uint8_t {
   lost_sync,     // the node ignores `count` SYNCs (no TPDO, no command applied)
   reboot,        // the node resets: boot-up message, pre-operational, dictionary defaults
   clear,         // ends the lasting faults of a node (or of every node, and bus-off)
+  push,          // the trainee's hand pushes the joint by about `move` (rad or m) against the
+                 // hand spring, independent of the drive (count SYNCs, or until cleared): what a
+                 // bench engineer does when `hil check` asks to move a joint by hand
 };
 const char* to_string(FaultKind kind) noexcept;
 
@@ -52,6 +55,7 @@ struct FaultSpec {
   std::int64_t delay_ns = 0;             // delay
   std::uint16_t code = 0x2310;           // emcy: continuous over-current
   std::int32_t counts = 0;               // encoder_jump
+  double move = 0.0;                     // push: joint-side displacement, rad or m
   CorruptMode corrupt_mode = CorruptMode::length;
   std::uint8_t corrupt_byte = 0;     // bits: which data byte of TPDO1
   std::uint8_t corrupt_mask = 0x08;  // bits: XOR mask (statusword bit 3, "fault", when

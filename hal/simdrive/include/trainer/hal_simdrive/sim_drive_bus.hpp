@@ -30,7 +30,9 @@
 //   encoder_jump position actual offset by `counts` from then on
 //   lost_sync   the node ignores N SYNCs: no TPDO, no command applied, torque held
 //   reboot      the node resets as by NMT reset node: boot-up, pre-operational, defaults
-//   clear       ends drop/delay/corrupt/silent/lost_sync of a node, or of all and bus-off
+//   push        the hand pushes the node's joint: an effort hand_stiffness * move on the plant,
+//               whatever the drive does (N SYNCs or until cleared)
+//   clear       ends drop/delay/corrupt/silent/lost_sync/push of a node, or of all and bus-off
 // Each is applied at once (inject() / post()) or when its at_sync / at_s comes.
 //
 // RT rules: poll() and inject() never allocate (fixed queues sized here, checked when full and
@@ -154,6 +156,8 @@ class SimDriveBus {
     Lasting corrupt;
     Lasting silent;
     Lasting lost_sync;
+    Lasting push;
+    double push_effort = 0.0;  // joint side, N·m or N, added to the drive's at every SYNC
     std::int64_t delay_ns = 0;
     CorruptMode corrupt_mode = CorruptMode::length;
     std::uint8_t corrupt_byte = 0;

@@ -6,7 +6,8 @@
 // torque back; the node never touches the wall clock: every call takes `now_ns`.
 //
 // Object dictionary (docs/simdrive.md lists it with types and access):
-//   0x1000 device type 0x00020192, 0x1001 error register, 0x1008 device name,
+//   0x1000 device type 0x00020192, 0x1001 error register, 0x1008 device name, 0x100A software
+//   version,
 //   0x1016:1..4 consumer heartbeat times, 0x1017 producer heartbeat time, 0x1018:1..4 identity,
 //   0x1400..0x1403 / 0x1600..0x1603 RPDO communication / mapping,
 //   0x1800..0x1803 / 0x1A00..0x1A03 TPDO communication / mapping,
@@ -61,6 +62,7 @@
 namespace trainer::hal::simdrive {
 
 inline constexpr std::uint32_t kDeviceTypeServoDrive = 0x00020192;  // CiA 402, servo drive
+inline constexpr std::uint16_t kObjectSoftwareVersion = 0x100A;      // visible string
 inline constexpr std::size_t kPdoCount = 4;                         // RPDO1..4, TPDO1..4
 inline constexpr std::size_t kConsumerHeartbeatEntries = 4;         // 0x1016:1..4
 inline constexpr std::size_t kNodeTxCapacity = 32;                  // frames queued per node
@@ -75,6 +77,7 @@ struct DriveIdentity {
 struct SimDriveNodeParams {
   std::uint8_t node_id = 0;                      // 1..127
   std::string device_name = "trainer simdrive";  // 0x1008, at most 32 characters
+  std::string software_version = "simdrive 1.0";  // 0x100A, at most 32 characters
   DriveIdentity identity;
   std::uint32_t motor_rated_torque_mnm = 0;  // 0x6076, > 0
   std::uint16_t max_torque_permille = 1000;  // 0x6072 default
@@ -84,6 +87,9 @@ struct SimDriveNodeParams {
   std::int64_t slow_down_ramp_ns = 0;           // 0x605B/C option 1, 0x605A 1/5
   std::int64_t quick_stop_ramp_ns = 0;          // 0x605A 2/6, 0x605E 2
   std::int64_t sdo_timeout_ns = 1'000'000'000;  // segmented SDO transfers
+  // Miswiring (simdrive --miswire): the drive as a bench wired wrongly presents it.
+  bool reverse_encoder = false;  // position and velocity actual negated
+  bool reverse_motor = false;    // the torque turns the joint the other way
 };
 
 // What a node asks the bus to send. The bus applies the injected faults by kind.

@@ -54,6 +54,11 @@ struct JointConfig {
   double capstan_radius_m = 0.0;          // insertion only; 0 for revolute joints
   double torque_constant_nm_per_a = 0.0;  // motor torque per ampere
   double current_limit_a = 0.0;           // drive's continuous current limit
+  // Wiring (hil check measures them): +1 as designed, -1 reversed. encoder_direction -1: the
+  // encoder counts down when the joint moves positive; motor_direction -1: a positive motor
+  // current turns the joint negative. Applied by hal::JointScale in every backend.
+  std::int8_t encoder_direction = 1;
+  std::int8_t motor_direction = 1;
   double min_position = 0.0;              // joint limits, rad or m; min_position < max_position
   double max_position = 0.0;
   // Simulated plant (used by the sim backend, ignored by hardware backends).

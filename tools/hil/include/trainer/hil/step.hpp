@@ -91,6 +91,8 @@ struct ScanSection {
   std::string part;  // "can", "gpio", "usb"
   std::vector<ScanItem> found;
   std::vector<StepResult> comparison;
+  // What the comparison calls for (e.g. a node_id when the drive answers under another id).
+  std::vector<Correction> corrections;
 };
 
 // A part's checks and the corrections its measurements call for.
@@ -98,6 +100,8 @@ struct CheckSection {
   std::string part;
   std::vector<StepResult> steps;
   std::vector<Correction> corrections;
+  // The identities of what was checked (drives, devices), for the commissioning report.
+  std::vector<ScanItem> bench;
 };
 
 }  // namespace trainer::hil

@@ -201,10 +201,5 @@ StepResult judge_watchdog(std::int64_t trip_ns, std::int64_t watchdog_ns, std::i
                           std::int64_t waited_ns, std::int64_t slow_motion);
 
 // ---------------------------------------------------------------- output
-// One line per step / item for people; the sections as JSON.
-std::string format_scan(const ScanSection& section);
-std::string format_check(const CheckSection& section);
-nlohmann::json to_json(const ScanSection& section);
-nlohmann::json to_json(const CheckSection& section);
 
 }  // namespace trainer::hil

@@ -1,13 +1,15 @@
 // The CiA 402 master's setup path (configure / activate): blocking SDO exchanges, boot-up
 // detection and the drive configuration sequence, over the device's transport. Setup only:
 // allocates, blocks up to the device file's timeouts (on the steady clock, whatever clock
-// the RT cycle uses), never runs in the RT cycle.
+// the RT cycle uses), never runs in the RT cycle. Public for the bring-up tool (tools/hil),
+// which configures one drive at a time the way the trainer does.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "trainer/core/expected.hpp"
 #include "trainer/hal_canopen/sdo_client.hpp"
@@ -27,6 +29,10 @@ class SetupBus {
   // SDO read of an object of 1..4 bytes, zero-extended.
   core::Expected<std::uint32_t> read(const std::string& who, std::uint8_t node,
                                      std::uint16_t index, std::uint8_t sub);
+  // SDO read (expedited or segmented) of up to `max_bytes` bytes, e.g. a visible string.
+  core::Expected<std::vector<std::uint8_t>> read_bytes(const std::string& who, std::uint8_t node,
+                                                       std::uint16_t index, std::uint8_t sub,
+                                                       std::size_t max_bytes);
   // Receives frames until `done` returns true for one of them or `timeout_ns` passes;
   // every frame goes to `on_frame` (boot-ups, EMCYs ...). False on timeout.
   bool wait_for(std::int64_t timeout_ns, const std::function<bool(const can_frame&)>& done);
