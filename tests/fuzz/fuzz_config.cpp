@@ -15,9 +15,13 @@
 // Invariants besides ASan/UBSan and no hang (-timeout): a refused input has a message that
 // names a file (the virtual name, or for a scene a file it refers to), and never the
 // "internal error" of an ErrorSink asked for an error it did not record; an accepted one holds
-// the counts and names its struct promises (docs/config.md).
+// the counts and names its struct promises (docs/config.md). Counters of accepted and refused
+// inputs per file type are printed at exit (at the end of a -runs run, or of a run over a corpus
+// with -runs=0), so a run shows that inputs get past the TOML syntax to the schema readers.
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -32,6 +36,33 @@ namespace {
 using namespace trainer::config;  // NOLINT: a fuzz target, one file
 
 const std::filesystem::path kConfigDir{TRAINER_FUZZ_CONFIG_DIR};
+
+struct ConfigCounters {
+  std::array<std::uint64_t, 3> accepted{};
+  std::array<std::uint64_t, 3> syntax_errors{};  // refused by toml++
+  std::array<std::uint64_t, 3> refused{};        // refused by the schema readers
+  ~ConfigCounters() {
+    const char* names[] = {"device", "scene", "model definition"};
+    for (std::size_t i = 0; i < 3; ++i) {
+      std::fprintf(stderr, "fuzz_config: %s files: %llu accepted, %llu syntax errors, %llu refused "
+                   "by the reader\n", names[i], static_cast<unsigned long long>(accepted[i]),
+                   static_cast<unsigned long long>(syntax_errors[i]),
+                   static_cast<unsigned long long>(refused[i]));
+    }
+  }
+};
+ConfigCounters g_config_counters;
+
+template <class T>
+void count(std::size_t mode, const trainer::core::Expected<T>& result) {
+  if (result) {
+    ++g_config_counters.accepted[mode];
+  } else if (result.error().message.find(": syntax error: ") != std::string::npos) {
+    ++g_config_counters.syntax_errors[mode];
+  } else {
+    ++g_config_counters.refused[mode];
+  }
+}
 
 void check_refusal(const trainer::core::Error& error, std::string_view file_name,
                    bool may_name_other_file) {
@@ -72,6 +103,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case 0: {
       const std::filesystem::path file = kConfigDir / "devices" / "fuzz.toml";
       auto device = load_device_text(text, file);
+      count(0, device);
       if (device) {
         check_device(*device);
       } else {
@@ -85,6 +117,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       options.require_script_file = false;
       options.device_file = kConfigDir / "devices" / "sim.toml";
       auto scene = load_scene_text(text, file, options);
+      count(1, scene);
       if (scene) {
         check_scene(*scene);
       } else {
@@ -95,6 +128,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     default: {
       const std::filesystem::path file = kConfigDir / "models" / "fuzz.toml";
       auto model = load_model_definition_text(text, file);
+      count(2, model);
       if (model) {
         FUZZ_CHECK(!model->name.empty());
       } else {
