@@ -2,7 +2,8 @@
 // bytes, every model kind, through parse_model_image — the function load_model_image runs over
 // the file once it has read it into its 64-byte-aligned arena block — and then what the
 // trainer does next with an image it accepted (rt/app/src/models/*_setup.cpp): the runtime
-// model built from the image's views, one step and one contact query on it.
+// model built from the image's views, one step and one contact query on it, and for the two
+// mesh kinds the contact surface's bucket grid over the rest shape.
 //
 // Input: byte 0 is the harness's control byte, the rest is the image file.
 //   bits 0..1  the kind the "scene" expects: 0 = the one the header names (bytes 20..23,
@@ -18,6 +19,7 @@
 // always at the end of a -runs run), so a run shows the parser is reached, not the checksum.
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -28,6 +30,7 @@
 
 #include "fuzz_input.hpp"
 #include "trainer/core/arena.hpp"
+#include "trainer/model/bucket_grid.hpp"
 #include "trainer/model/catheter.hpp"
 #include "trainer/model/catheter_image.hpp"
 #include "trainer/model/image_format.hpp"
@@ -63,6 +66,7 @@ struct Counters {
   std::array<std::uint64_t, 4> model_refused{};  // by kind: refused with a message after loading
   std::array<std::uint64_t, 4> stepped{};        // by kind
   std::array<std::string, 4> first_model_refusal;
+  std::uint64_t surfaces = 0;  // contact grids built, rebuilt and queried
   ~Counters() {
     std::fprintf(stderr,
                  "fuzz_model_image: %llu inputs, %llu with the checksum kept, %llu refused at "
@@ -83,6 +87,8 @@ struct Counters {
                    first_model_refusal[kind].empty() ? "" : "; first refusal: ",
                    first_model_refusal[kind].c_str());
     }
+    std::fprintf(stderr, "fuzz_model_image: %llu contact surface grids built and queried\n",
+                 static_cast<unsigned long long>(surfaces));
   }
 };
 Counters g_counters;
@@ -95,6 +101,47 @@ void model_refused(std::size_t kind, const std::string& message) {
   }
 }
 
+// The contact surface the trainer builds over a mesh image's rest positions and triangles
+// (rt/app/src/contact_surface.cpp, make_surface_grid: the same settings from the same data):
+// the bucket grid created, rebuilt over the rest shape and queried around a vertex.
+void exercise_surface(const ModelImage& image, Arena& arena) {
+  const std::span<const float> rest = image.floats(SectionId::rest_positions);
+  const std::span<const std::uint32_t> triangles = image.u32s(SectionId::triangles);
+  const std::size_t vertex_count = rest.size() / 3;
+  const std::size_t triangle_count = triangles.size() / 3;
+  if (vertex_count == 0 || triangle_count == 0) return;
+  const auto vertex = [&](std::uint32_t node) {
+    const std::size_t base = 3 * static_cast<std::size_t>(node);
+    return Vec3(rest[base], rest[base + 1], rest[base + 2]);
+  };
+  float longest_edge = 0.0F;
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    for (std::size_t e = 0; e < 3; ++e) {
+      longest_edge = std::max(longest_edge, (vertex(triangles[3 * t + e]) -
+                                             vertex(triangles[3 * t + (e + 1) % 3]))
+                                                .norm());
+    }
+  }
+  BucketGridSettings settings;
+  settings.max_triangles = static_cast<std::uint32_t>(triangle_count);
+  settings.max_vertices = static_cast<std::uint32_t>(vertex_count);
+  settings.cell_size_m = 1.5F * longest_edge;
+  settings.max_entries = static_cast<std::uint32_t>(27 * triangle_count);
+  settings.table_size = std::bit_ceil(2U * settings.max_entries / 8U + 1U);
+  auto grid = BucketGrid::create(settings, arena);
+  if (!grid) {
+    FUZZ_CHECK(!grid.error().message.empty());
+    return;
+  }
+  auto ids = arena.allocate_array<std::uint32_t>(triangle_count, "fuzz grid query");
+  if (!ids) return;
+  if (!grid->rebuild(rest, triangles).is_ok()) return;
+  std::size_t found = 0;
+  (void)grid->query(Aabb::around_point(vertex(triangles[0]), 1e-3F), *ids, found);
+  FUZZ_CHECK(found <= triangle_count);
+  ++g_counters.surfaces;
+}
+
 void exercise_modal(const ModelImage& image, Arena& arena) {
   ModalSettings settings;
   settings.time_step_s = kPeriodS;
@@ -102,6 +149,7 @@ void exercise_modal(const ModelImage& image, Arena& arena) {
   auto model = ModalModel::create(modal_model_data(image), arena, settings);
   if (!model) return model_refused(1, model.error().message);
   ++g_counters.model_created[1];
+  exercise_surface(image, arena);
   const std::span<const std::uint32_t> surface = image.u32s(SectionId::surface_nodes);
   const std::uint32_t node = surface.empty() ? 0 : surface.back();
   (void)model->add_node_force(node, Eigen::Vector3f(0.1F, -0.2F, 0.3F));
@@ -118,6 +166,7 @@ void exercise_tensor(const ModelImage& image, Arena& arena) {
   auto model = TensorModel::create(tensor_model_data(image), TensorSettings{}, arena);
   if (!model) return model_refused(2, model.error().message);
   ++g_counters.model_created[2];
+  exercise_surface(image, arena);
   const std::span<const std::uint32_t> contacts = model->contact_nodes();
   if (!contacts.empty()) {
     const std::array<TensorContact, 1> contact{
@@ -206,7 +255,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     FUZZ_CHECK(view.data >= file.data() && view.data < file.data() + file.size());
   }
 
-  auto arena = Arena::create(64 * 1024 + 16 * file_size);
+  auto arena = Arena::create(128 * 1024 + 48 * file_size);  // model state and contact grid
   FUZZ_CHECK(static_cast<bool>(arena));
   switch (expected) {
     case ModelKind::modal_shell: exercise_modal(*image, *arena); break;
