@@ -6,7 +6,8 @@
 #                            catheter insertion), report in out/
 #   tools/bootstrap.sh test  install dependencies, build and pass every test: the release
 #                            suite, the ASan+UBSan unit tests, the TSan concurrency tests and
-#                            short libFuzzer runs of the CANopen library (fuzz preset, clang)
+#                            short libFuzzer runs of the CANopen and USB protocols, the model
+#                            image loader and the config reader (fuzz preset, clang)
 #   tools/bootstrap.sh bench [benchmark args]
 #                            install, build, build the cbd and liver images, run the cycle
 #                            benchmark (bench_cycle: the whole cycle and each stage of the
@@ -89,7 +90,7 @@ case "$mode" in
     echo "== TSan build: concurrency tests"
     build tsan concurrency_tests
     ctest --preset tsan -j "$jobs"
-    echo "== fuzz build (clang, ASan+UBSan): libFuzzer targets, 200,000 runs each"
+    echo "== fuzz build (clang, ASan+UBSan): libFuzzer targets, 200,000 runs each (fuzz_config 20,000)"
     build fuzz fuzz_targets
     ctest --preset fuzz
     echo "== all test suites passed"

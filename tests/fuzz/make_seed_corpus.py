@@ -1,12 +1,19 @@
 #!/usr/bin/env python3
 """Writes the seed corpus of the fuzz targets (tests/fuzz/corpus/<target>/): a few valid
 frames and exchanges in each target's input format (see the header comment of
-fuzz_can_frames.cpp and fuzz_sdo_client.cpp), and valid USB reports (docs/usb-protocol.md) for
-fuzz_usb_in_report. Run from anywhere; rewrites the files."""
+fuzz_can_frames.cpp and fuzz_sdo_client.cpp), valid USB reports (docs/usb-protocol.md) for
+fuzz_usb_in_report, every file under config/ (devices, scenes, model definitions) with
+fuzz_config's leading mode byte, and fuzz_config's TOML dictionary (config.dict: every quoted
+identifier of rt/config/src, which holds every key, table and choice, plus TOML syntax).
+Run from anywhere; rewrites the files. The model image seeds come from make_image_seeds.sh
+(they need modelc)."""
 import pathlib
+import re
+import shutil
 import struct
 
 HERE = pathlib.Path(__file__).resolve().parent
+REPO = HERE.parent.parent
 CAN_ERR_FLAG = 0x20000000
 
 
@@ -105,7 +112,34 @@ def usb_in_report_corpus():
     write(t, "identity", usb_identity(10, 0x0100, 20, 1000, 3000))
 
 
+def config_corpus():
+    """fuzz_config: byte 0 = 0 device, 1 scene, 2 model definition; then the file's text."""
+    t = "fuzz_config"
+    shutil.rmtree(HERE / "corpus" / t, ignore_errors=True)
+    for mode, sub in ((0, "devices"), (1, "scenes"), (2, "models")):
+        for path in sorted((REPO / "config" / sub).glob("*.toml")):
+            write(t, f"{sub}_{path.stem}", bytes([mode]) + path.read_bytes())
+
+
+def config_dict():
+    """-dict= of fuzz_config: libFuzzer's format, one "token" per line."""
+    words = set()
+    for source in sorted((REPO / "rt" / "config" / "src").glob("*.cpp")):
+        words.update(re.findall(r'"([a-z][a-z0-9_]*)"', source.read_text()))
+    syntax = ["[", "]", "[[", "]]", " = ", "=", "\\x0A", "#", ",", ".", "\\\"", "'",
+              "\\\"\\\"\\\"", "'" * 3, "true", "false", "inf", "-inf", "nan", "0", "-1", "1e308",
+              "1e-320", "0x7fffffffffffffff", "-9223372036854775808", "1979-05-27T07:32:00Z",
+              "{ }", "[ ]", "builtin:", "../devices/sim.toml", "../models/duct.toml",
+              "../models/liver.toml", "../models/catheter.toml", "../trajectories/wall_press.csv"]
+    lines = ["# fuzz_config dictionary: written by make_seed_corpus.py from rt/config/src"]
+    lines += [f'kw_{w}="{w}"' for w in sorted(words)]
+    lines += [f'syntax_{i}="{token}"' for i, token in enumerate(syntax)]
+    (HERE / "config.dict").write_text("\n".join(lines) + "\n")
+
+
 if __name__ == "__main__":
+    config_corpus()
+    config_dict()
     can_frames()
     sdo_client()
     usb_in_report_corpus()

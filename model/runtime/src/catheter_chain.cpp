@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "catheter_refusal.hpp"
@@ -82,7 +83,12 @@ core::Expected<CatheterChain> derive_catheter_chain(const CatheterParams& params
 
 std::uint64_t catheter_substeps_for(double period_s, double substep_s) noexcept {
   const double ratio = std::ceil(period_s / substep_s - 1e-9);  // exact multiples stay exact
-  return ratio < 1.0 ? 1U : static_cast<std::uint64_t>(ratio);
+  if (ratio < 1.0) return 1U;
+  // A substep so small (a denormal from an image, say) that the count does not fit: converting
+  // that double would be undefined behaviour. Saturate; every budget refuses it.
+  constexpr double kTwoTo64 = 18446744073709551616.0;
+  if (!(ratio < kTwoTo64)) return std::numeric_limits<std::uint64_t>::max();
+  return static_cast<std::uint64_t>(ratio);
 }
 
 core::Expected<std::uint32_t> catheter_substeps_per_period(const CatheterParams& params,

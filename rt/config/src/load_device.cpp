@@ -653,13 +653,25 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
 
 }  // namespace
 
-core::Expected<DeviceConfig> load_device(const std::filesystem::path& file) {
-  auto parsed = detail::parse_toml_file(file);
+namespace {
+
+core::Expected<DeviceConfig> device_from_parsed(core::Expected<detail::ParsedFile> parsed) {
   if (!parsed) return std::move(parsed).error();
   ErrorSink errors;
   DeviceConfig config = read_device(*parsed, errors);
   if (!errors.ok()) return errors.error();
   return config;
+}
+
+}  // namespace
+
+core::Expected<DeviceConfig> load_device(const std::filesystem::path& file) {
+  return device_from_parsed(detail::parse_toml_file(file));
+}
+
+core::Expected<DeviceConfig> load_device_text(std::string_view text,
+                                              const std::filesystem::path& file) {
+  return device_from_parsed(detail::parse_toml_text(text, file));
 }
 
 }  // namespace trainer::config

@@ -235,8 +235,24 @@ void read_pose(TableReader& pose, CatheterConfig& c) {
 
 }  // namespace
 
+namespace {
+
+core::Expected<ModelDefinition> model_from_parsed(core::Expected<detail::ParsedFile> parsed);
+
+}  // namespace
+
 core::Expected<ModelDefinition> load_model_definition(const std::filesystem::path& file) {
-  auto parsed = detail::parse_toml_file(file);
+  return model_from_parsed(detail::parse_toml_file(file));
+}
+
+core::Expected<ModelDefinition> load_model_definition_text(std::string_view text,
+                                                           const std::filesystem::path& file) {
+  return model_from_parsed(detail::parse_toml_text(text, file));
+}
+
+namespace {
+
+core::Expected<ModelDefinition> model_from_parsed(core::Expected<detail::ParsedFile> parsed) {
   if (!parsed) return std::move(parsed).error();
   ErrorSink errors;
   TableReader root = detail::root_reader(*parsed, errors);
@@ -298,5 +314,7 @@ core::Expected<ModelDefinition> load_model_definition(const std::filesystem::pat
   if (!errors.ok()) return errors.error();
   return model;
 }
+
+}  // namespace
 
 }  // namespace trainer::config

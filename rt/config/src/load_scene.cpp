@@ -420,9 +420,10 @@ core::Expected<void> apply_loop_overrides(LoopConfig& loop, const LoopOverrides&
   return {};
 }
 
-core::Expected<SceneConfig> load_scene(const std::filesystem::path& file,
-                                       const LoadOptions& options) {
-  auto parsed = detail::parse_toml_file(file);
+namespace {
+
+core::Expected<SceneConfig> scene_from_parsed(core::Expected<detail::ParsedFile> parsed,
+                                              const LoadOptions& options) {
   if (!parsed) return std::move(parsed).error();
   ErrorSink errors;
   std::optional<core::Error> device_error;
@@ -430,6 +431,19 @@ core::Expected<SceneConfig> load_scene(const std::filesystem::path& file,
   if (device_error) return std::move(*device_error);
   if (!errors.ok()) return errors.error();
   return config;
+}
+
+}  // namespace
+
+core::Expected<SceneConfig> load_scene(const std::filesystem::path& file,
+                                       const LoadOptions& options) {
+  return scene_from_parsed(detail::parse_toml_file(file), options);
+}
+
+core::Expected<SceneConfig> load_scene_text(std::string_view text,
+                                            const std::filesystem::path& file,
+                                            const LoadOptions& options) {
+  return scene_from_parsed(detail::parse_toml_text(text, file), options);
 }
 
 }  // namespace trainer::config

@@ -79,44 +79,62 @@ bool is_valid_name(std::string_view name) noexcept {
 
 // ---------------------------------------------------------------- parsing
 
-core::Expected<ParsedFile> parse_toml_file(const fs::path& path) {
-  ParsedFile parsed;
-  parsed.file.display_name = path.lexically_normal().string();
+namespace {
+
+SourceFile source_file_of(const fs::path& path) {
+  SourceFile file;
+  file.display_name = path.lexically_normal().string();
   std::error_code error_code;
   fs::path absolute = fs::absolute(path, error_code);
   if (error_code) absolute = path;
-  parsed.file.absolute_path = absolute.lexically_normal();
-  parsed.file.display_directory = path.lexically_normal().parent_path();
-  parsed.file.absolute_directory = parsed.file.absolute_path.parent_path();
+  file.absolute_path = absolute.lexically_normal();
+  file.display_directory = path.lexically_normal().parent_path();
+  file.absolute_directory = file.absolute_path.parent_path();
+  return file;
+}
 
-  const auto status = fs::status(parsed.file.absolute_path, error_code);
-  if (!fs::exists(status)) {
-    return core::make_error(parsed.file.display_name + ": file not found (resolved to " +
-                            parsed.file.absolute_path.string() + ")");
-  }
-  if (!fs::is_regular_file(status)) {
-    return core::make_error(parsed.file.display_name + ": not a regular file (resolved to " +
-                            parsed.file.absolute_path.string() + ")");
-  }
-  // Sized read rather than istreambuf_iterator, which trips GCC 12's -Wnull-dereference.
-  const auto size = fs::file_size(parsed.file.absolute_path, error_code);
-  std::ifstream stream(parsed.file.absolute_path, std::ios::binary);
-  std::string content(error_code ? 0 : static_cast<std::size_t>(size), '\0');
-  stream.read(content.data(), static_cast<std::streamsize>(content.size()));
-  if (error_code || !stream.is_open() ||
-      stream.gcount() != static_cast<std::streamsize>(content.size())) {
-    return core::make_error(parsed.file.display_name + ": cannot read the file (resolved to " +
-                            parsed.file.absolute_path.string() + ")");
-  }
+core::Expected<ParsedFile> parse_toml_content(SourceFile file, std::string_view content) {
+  ParsedFile parsed;
+  parsed.file = std::move(file);
   try {
-    parsed.root =
-        toml::parse(std::string_view{content}, std::string_view{parsed.file.display_name});
+    parsed.root = toml::parse(content, std::string_view{parsed.file.display_name});
   } catch (const toml::parse_error& error) {
     return core::make_error(parsed.file.display_name + ":" +
                             std::to_string(error.source().begin.line) +
                             ": syntax error: " + std::string(error.description()));
   }
   return parsed;
+}
+
+}  // namespace
+
+core::Expected<ParsedFile> parse_toml_file(const fs::path& path) {
+  SourceFile file = source_file_of(path);
+  std::error_code error_code;
+  const auto status = fs::status(file.absolute_path, error_code);
+  if (!fs::exists(status)) {
+    return core::make_error(file.display_name + ": file not found (resolved to " +
+                            file.absolute_path.string() + ")");
+  }
+  if (!fs::is_regular_file(status)) {
+    return core::make_error(file.display_name + ": not a regular file (resolved to " +
+                            file.absolute_path.string() + ")");
+  }
+  // Sized read rather than istreambuf_iterator, which trips GCC 12's -Wnull-dereference.
+  const auto size = fs::file_size(file.absolute_path, error_code);
+  std::ifstream stream(file.absolute_path, std::ios::binary);
+  std::string content(error_code ? 0 : static_cast<std::size_t>(size), '\0');
+  stream.read(content.data(), static_cast<std::streamsize>(content.size()));
+  if (error_code || !stream.is_open() ||
+      stream.gcount() != static_cast<std::streamsize>(content.size())) {
+    return core::make_error(file.display_name + ": cannot read the file (resolved to " +
+                            file.absolute_path.string() + ")");
+  }
+  return parse_toml_content(std::move(file), content);
+}
+
+core::Expected<ParsedFile> parse_toml_text(std::string_view content, const fs::path& path) {
+  return parse_toml_content(source_file_of(path), content);
 }
 
 // ---------------------------------------------------------------- errors and ranges

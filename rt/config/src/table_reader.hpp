@@ -13,7 +13,7 @@
 // checks across keys should run only while errors.ok(), so a value that defaulted after a
 // failure never produces a second, misleading message.
 //
-// Setup path: allocates, may see toml++ exceptions only inside parse_toml_file().
+// Setup path: allocates, may see toml++ exceptions only inside parse_toml_file()/parse_toml_text().
 #pragma once
 
 #include <cstddef>
@@ -53,6 +53,11 @@ struct ParsedFile {
 // Reads and parses a TOML file. Errors: "<file>: file not found (resolved to <abs>)",
 // "<file>: cannot read ...", "<file>:<line>: syntax error: <toml++ description>".
 core::Expected<ParsedFile> parse_toml_file(const std::filesystem::path& path);
+// The same for text already in memory, read as if it were the file `path` (which names it in
+// messages and anchors its relative paths; it need not exist). parse_toml_file reads the file
+// and ends here, so both parse alike.
+core::Expected<ParsedFile> parse_toml_text(std::string_view content,
+                                           const std::filesystem::path& path);
 
 // Keeps the first error, except that a missing required key yields to any later error at a
 // specific value or key: a typo such as `perod_us` makes `period_us` missing first, and the

@@ -258,6 +258,30 @@ TEST_F(CatheterImage, MetadataMustDescribeAChain) {
 // ---------------------------------------------------------------------------------------------
 // The record, field by field (valid checksum: the field check is what refuses)
 
+// Found by fuzz_model_image (docs/fuzzing.md): a record whose stable substep is a tiny positive
+// float (a denormal passes "finite, > 0, at most the stability bound") loads, and counting the
+// substeps of a haptic period converted ~1e40 to uint64_t — undefined behaviour, caught by
+// UBSan. The count now saturates and the catheter is refused with the budget message.
+TEST_F(CatheterImage, ATinyStableSubstepIsRefusedByTheBudgetNotConvertedOutOfRange) {
+  EXPECT_EQ(catheter_substeps_for(1e-3, 1e-45), std::numeric_limits<std::uint64_t>::max());
+  EXPECT_EQ(catheter_substeps_for(1e-3, std::numeric_limits<double>::denorm_min()),
+            std::numeric_limits<std::uint64_t>::max());
+  EXPECT_EQ(catheter_substeps_for(1e-3, 1e-23), std::numeric_limits<std::uint64_t>::max());
+  EXPECT_EQ(catheter_substeps_for(1e-3, 1e-12), 1000000000U);
+  constexpr float kTiny = 1e-44F;  // a float denormal
+  auto loaded = load_with_field(offsetof(CatheterParametersV1, stable_substep_s), kTiny);
+  ASSERT_TRUE(loaded) << loaded.error().message;
+  const CatheterModelData data = catheter_model_data(loaded.value());
+  EXPECT_EQ(data.chain.stable_substep_s, kTiny);
+  core::Arena arena = core::Arena::create(64 * 1024).value();
+  auto refused = Catheter::create(data, 1e-3F, 4, arena);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("needs 18446744073709551615 substeps"), std::string::npos)
+      << refused.error().message;
+  EXPECT_NE(refused.error().message.find("max_substeps = 64"), std::string::npos)
+      << refused.error().message;
+}
+
 TEST_F(CatheterImage, EveryRecordFieldIsChecked) {
   constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
   constexpr float kInf = std::numeric_limits<float>::infinity();

@@ -7,12 +7,16 @@
 #include <unistd.h>
 
 #include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "catheter_build.hpp"
 #include "catheter_images.hpp"
@@ -20,6 +24,7 @@
 #include "trainer/app/trainer_run.hpp"
 #include "trainer/config/model.hpp"
 #include "trainer/core/alloc_counter.hpp"
+#include "trainer/model/image_format.hpp"
 
 namespace trainer::app {
 namespace {
@@ -281,6 +286,85 @@ TEST_F(EditedCatheterScene, MissingStaleOrDamagedImagesAreRefusedBeforeArming) {
       << missing.error().message;
   EXPECT_NE(missing.error().message.find("build it with: modelc build --scene"), std::string::npos)
       << missing.error().message;
+}
+
+// Files an appliance trusts (docs/fuzzing.md): an image damaged behind a valid checksum (the
+// record's stable substep a denormal, which fuzz_model_image found converting ~1e40 to an
+// integer), a truncated image, a malformed device file and a malformed scene are each refused
+// by run_trainer with a message naming the file, and nothing runs: no cycle, no log line (the
+// loop logs when it arms). trainer_main turns every run_trainer error into exit status 1
+// (tests/rt/app/untrusted_files_test.sh checks the status on the trainer binary).
+TEST_F(EditedCatheterScene, TheTrainerNeverArmsOnADamagedImageOrAMalformedFile) {
+  const fs::path scene = scene_with(kNoGravity, kNoGravity);
+  const fs::path image = root_ / "models/catheter.img";
+  ASSERT_TRUE(fs::exists(image));
+  std::vector<std::string> log;
+  const auto refused = [&](const RunOptions& options) -> std::string {
+    log.clear();
+    RunOptions logged = options;
+    logged.on_log = [&log](const std::string& line) { log.push_back(line); };
+    auto result = run_trainer(logged);
+    EXPECT_FALSE(result) << "armed and ran " << (result ? result->loop.cycles : 0) << " cycles";
+    EXPECT_TRUE(log.empty()) << log.front();
+    return result ? std::string{} : result.error().message;
+  };
+  const std::string good = read_text(image);
+
+  // The stable substep a float denormal, checksum recomputed: the loader accepts the record
+  // (finite, > 0, below the stability bound), the catheter's substep budget refuses it.
+  std::string tiny = good;
+  model::ImageHeaderV1 header{};
+  std::memcpy(&header, tiny.data(), sizeof header);
+  std::uint64_t record_offset = 0;
+  for (std::uint32_t i = 0; i < header.section_count; ++i) {
+    model::SectionEntryV1 entry{};
+    std::memcpy(&entry, tiny.data() + model::kImageHeaderBytes + i * model::kImageSectionEntryBytes,
+                sizeof entry);
+    if (entry.id == static_cast<std::uint32_t>(model::SectionId::catheter_parameters)) {
+      record_offset = entry.offset;
+    }
+  }
+  ASSERT_NE(record_offset, 0U);
+  const float denormal = 1e-44F;
+  std::memcpy(tiny.data() + record_offset + offsetof(model::CatheterParametersV1, stable_substep_s),
+              &denormal, sizeof denormal);
+  const std::uint64_t checksum = model::compute_image_checksum(
+      {reinterpret_cast<const std::byte*>(tiny.data()), tiny.size()});
+  std::memcpy(tiny.data() + model::kImageChecksumOffset, &checksum, sizeof checksum);
+  std::ofstream(image, std::ios::binary | std::ios::trunc) << tiny;
+  std::string message = refused(simulated(scene, 5));
+  EXPECT_NE(message.find(image.string()), std::string::npos) << message;
+  EXPECT_NE(message.find("substeps"), std::string::npos) << message;
+
+  // Truncated by one byte.
+  std::ofstream(image, std::ios::binary | std::ios::trunc) << good.substr(0, good.size() - 1);
+  message = refused(simulated(scene, 5));
+  EXPECT_NE(message.find(image.string()), std::string::npos) << message;
+  EXPECT_NE(message.find("file_bytes"), std::string::npos) << message;
+  std::ofstream(image, std::ios::binary | std::ios::trunc) << good;
+
+  // A device file with a syntax error, given as the scene's device (trainer --device).
+  const fs::path device = root_ / "devices/broken.toml";
+  std::ofstream(device, std::ios::binary | std::ios::trunc)
+      << replaced(read_text(kRepo / "config/devices/sim.toml"), "[device]", "[device");
+  RunOptions with_device = simulated(scene, 5);
+  with_device.device_file = device;
+  message = refused(with_device);
+  EXPECT_NE(message.find("broken.toml:"), std::string::npos) << message;
+  EXPECT_NE(message.find("syntax error"), std::string::npos) << message;
+
+  // A scene with a value out of range.
+  const fs::path bad_scene = root_ / "scenes/broken.toml";
+  std::ofstream(bad_scene, std::ios::binary | std::ios::trunc)
+      << replaced(read_text(scene), "period_us = 1000", "period_us = 0");
+  message = refused(simulated(bad_scene, 5));
+  EXPECT_NE(message.find("broken.toml:"), std::string::npos) << message;
+  EXPECT_NE(message.find("period_us"), std::string::npos) << message;
+
+  // The good image still runs (the edits above are what was refused).
+  auto runs = run_trainer(simulated(scene, 5));
+  ASSERT_TRUE(runs) << runs.error().message;
+  EXPECT_EQ(runs->loop.cycles, 5U);
 }
 
 }  // namespace

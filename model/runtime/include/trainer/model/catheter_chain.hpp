@@ -55,6 +55,7 @@ double catheter_stable_substep_s(double mass_kg, double axial_n_per_m, double be
 core::Expected<CatheterChain> derive_catheter_chain(const CatheterParams& params);
 
 // ceil(period / substep) for a positive substep, at least 1; exact multiples do not round up.
+// A count beyond 2^64 - 1 (or a NaN ratio) saturates at UINT64_MAX.
 std::uint64_t catheter_substeps_for(double period_s, double substep_s) noexcept;
 
 // The substeps one haptic period costs at the chain's stored (float) substep — the value

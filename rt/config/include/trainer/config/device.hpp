@@ -179,5 +179,9 @@ struct DeviceConfig {
 // there is one), the key, the bad value and what was expected, e.g.
 //   config/devices/sim.toml:31: instrument[0].pitch.gear_ratio = 0.0 is out of range: ...
 core::Expected<DeviceConfig> load_device(const std::filesystem::path& file);
+// The same for a device file's text already in memory, read as if it were `file` (named in
+// messages; need not exist). load_device reads the file and parses it the same way.
+core::Expected<DeviceConfig> load_device_text(std::string_view text,
+                                              const std::filesystem::path& file);
 
 }  // namespace trainer::config

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "trainer/config/device.hpp"  // Vec3
@@ -131,5 +132,9 @@ struct ModelDefinition {
 };
 
 core::Expected<ModelDefinition> load_model_definition(const std::filesystem::path& file);
+// The same for a definition's text already in memory, read as if it were `file` (named in
+// messages, its directory anchoring `image` and `mesh.file`; it need not exist).
+core::Expected<ModelDefinition> load_model_definition_text(std::string_view text,
+                                                           const std::filesystem::path& file);
 
 }  // namespace trainer::config

@@ -147,5 +147,12 @@ core::Expected<void> apply_loop_overrides(LoopConfig& loop, const LoopOverrides&
 // line (when there is one), the key, the bad value and what was expected.
 core::Expected<SceneConfig> load_scene(const std::filesystem::path& file,
                                        const LoadOptions& options = {});
+// The same for a scene file's text already in memory, read as if it were `file`: messages name
+// `file`, and the device, model definitions and scripts it refers to are resolved from its
+// directory and loaded from disk as load_scene does (options.device_file replaces the device
+// reference). load_scene reads the file and parses it the same way.
+core::Expected<SceneConfig> load_scene_text(std::string_view text,
+                                            const std::filesystem::path& file,
+                                            const LoadOptions& options = {});
 
 }  // namespace trainer::config
