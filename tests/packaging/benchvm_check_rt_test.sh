@@ -29,7 +29,10 @@ prlimit --rtprio=95 --memlock=unlimited setpriv --reuid=nobody --regid=nogroup -
 GUEST
 chmod +x "$work/guest.sh"
 status=0
-"$src/tools/benchvm/benchvm" run --timeout 60 --out "$work" -- "$work/guest.sh" || status=$?
+# From the source tree: the guest sees the caller's working directory even under /tmp (its own
+# tmpfs hides the rest of the host's /tmp), and with it the build tree inside the source tree.
+cd "$src"
+tools/benchvm/benchvm run --timeout 60 --out "$work" -- "$work/guest.sh" || status=$?
 [ "$status" -ne 77 ] || exit 77
 [ "$status" -eq 0 ] || { echo "FAIL: benchvm run exited with $status"; exit 1; }
 python3 - "$work/check.json" "$(cat "$work/status")" "$work/user_check.json" "$work/user_run.json" <<'PY'
