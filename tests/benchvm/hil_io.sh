@@ -70,23 +70,8 @@ mark "gadget modules loaded"
 chrt -f 50 "$bin/usbgadget" --scene config/scenes/wall.toml --device "$usb_device" \
   --script builtin:hold --period-us 1000 --slow-motion "$usb_slow" >"$out/usbgadget.txt" 2>&1 &
 gadget=$!
-enumerated=0
-for _ in $(seq 1 200); do
-  for dev in /sys/bus/usb/devices/*; do
-    if [ "$(cat "$dev/idVendor" 2>/dev/null)" = 1209 ] && [ "$(cat "$dev/idProduct" 2>/dev/null)" = 0001 ]; then
-      enumerated=1
-    fi
-  done
-  [ "$enumerated" = 1 ] && break
-  kill -0 "$gadget" 2>/dev/null || break
-  sleep 0.1
-done
-if [ "$enumerated" != 1 ]; then
-  echo "FAIL: the gadget did not enumerate within 20 s"
-  cat "$out/usbgadget.txt"
-  kill -INT "$gadget" 2>/dev/null
-  exit 10
-fi
+. tests/benchvm/usb_gadget_wait.sh
+wait_for_gadget "$gadget" "$out/usbgadget.txt" || exit 10
 mark "gadget enumerated"
 run usb_scan --device "$usb_device" scan --only usb
 # The round-trip step judges the longest run of stale cycles against usb.stale_limit_cycles (5

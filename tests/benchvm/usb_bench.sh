@@ -22,24 +22,8 @@ fi
 chrt -f 50 "$bin/usbgadget" --scene "$scene" --device "$device" --period-us 100 \
   --slow-motion "$slow" >"$out/usbgadget.txt" 2>&1 &
 gadget=$!
-enumerated=0
-for _ in $(seq 1 200); do
-  for dev in /sys/bus/usb/devices/*; do
-    if [ "$(cat "$dev/idVendor" 2>/dev/null)" = 1209 ] && [ "$(cat "$dev/idProduct" 2>/dev/null)" = 0001 ]; then
-      enumerated=1
-    fi
-  done
-  [ "$enumerated" = 1 ] && break
-  kill -0 "$gadget" 2>/dev/null || break
-  sleep 0.1
-done
-if [ "$enumerated" != 1 ]; then
-  echo "the gadget did not enumerate within 20 s"
-  cat "$out/usbgadget.txt"
-  kill -INT "$gadget" 2>/dev/null
-  wait "$gadget"
-  exit 10
-fi
+. tests/benchvm/usb_gadget_wait.sh
+wait_for_gadget "$gadget" "$out/usbgadget.txt" || exit 10
 chrt -f 40 "$bin/usbbench" --device "$device" --frames "$frames" --period-us "$period_us" \
   --slow-motion "$slow" --report "$out/usbbench.json"
 status=$?

@@ -29,25 +29,8 @@ chrt -f 50 "$bin/usbgadget" --scene "$scene" --device "$device" --period-us "$pe
   --slow-motion "$slow" --gadget-name "$gadget_name" --events "$out/usbgadget_events.jsonl" \
   >"$out/usbgadget.txt" 2>&1 &
 gadget=$!
-# Enumerated when the host's usbcore created the device (VID:PID 1209:0001) in sysfs.
-enumerated=0
-for _ in $(seq 1 200); do
-  for dev in /sys/bus/usb/devices/*; do
-    if [ "$(cat "$dev/idVendor" 2>/dev/null)" = 1209 ] && [ "$(cat "$dev/idProduct" 2>/dev/null)" = 0001 ]; then
-      enumerated=1
-    fi
-  done
-  [ "$enumerated" = 1 ] && break
-  kill -0 "$gadget" 2>/dev/null || break
-  sleep 0.1
-done
-if [ "$enumerated" != 1 ]; then
-  echo "the gadget did not enumerate within 20 s"
-  cat "$out/usbgadget.txt"
-  kill -INT "$gadget" 2>/dev/null
-  wait "$gadget"
-  exit 10
-fi
+. tests/benchvm/usb_gadget_wait.sh
+wait_for_gadget "$gadget" "$out/usbgadget.txt" || exit 10
 "$bin/trainer" --scene "$scene" --device "$device" --period-us "$period_us" --cycles "$cycles" \
   --slow-motion "$slow" --overrun-streak-limit 1000 --no-rt --report "$out/usb_report.json" \
   >"$out/trainer.txt" 2>&1 &
