@@ -7,7 +7,7 @@
 #                               line 0, the enable switch line 1
 #   hil_io_act.sh dead ACTION   a dead e-stop line: the "press" reaches line 4 (spare, a hog
 #                               output: its pull changes nothing), never 0
-# Unknown actions fail (hil_io takes that as declined). POSIX sh (dash): it runs once per
+# Unknown actions fail (hil takes that as declined). POSIX sh (dash): it runs once per
 # action, and dash starts several times faster than bash under TCG.
 set -eu
 mode=$1 action=$2
