@@ -313,13 +313,8 @@ CheckSection check_gpio(const BenchContext& bench) { return check_gpio(bench, Gp
 CheckSection check_gpio(const BenchContext& bench, const GpioCheckOptions& options) {
   CheckSection section;
   section.part = "gpio";
-  auto skip_all = [&](const std::string& reason) {
-    StepResult step;
-    step.id = "gpio.check";
-    step.title = "GPIO checks";
-    step.reason = reason;
-    section.steps.push_back(std::move(step));
-    return section;
+  auto skip_all = [](const std::string& reason) {
+    return skipped_checks("gpio", "GPIO checks", reason);
   };
   if (!bench.device) return skip_all("no device file: which lines to check is the [gpio] table's");
   const config::DeviceConfig& device = *bench.device;

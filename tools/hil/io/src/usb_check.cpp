@@ -187,13 +187,8 @@ CheckSection check_usb(const BenchContext& bench) { return check_usb(bench, UsbC
 CheckSection check_usb(const BenchContext& bench, const UsbCheckOptions& options) {
   CheckSection section;
   section.part = "usb";
-  auto skip_all = [&](const std::string& reason) {
-    StepResult step;
-    step.id = "usb.check";
-    step.title = "USB checks";
-    step.reason = reason;
-    section.steps.push_back(std::move(step));
-    return section;
+  auto skip_all = [](const std::string& reason) {
+    return skipped_checks("usb", "USB checks", reason);
   };
   if (!bench.device) return skip_all("no device file: the interface and its channels are the [usb] table's");
   if (bench.device->backend != "usb") {

@@ -104,4 +104,17 @@ struct CheckSection {
   std::vector<ScanItem> bench;
 };
 
+// A part's checks when none can run: one skipped step `<part>.check` saying why.
+inline CheckSection skipped_checks(const std::string& part, const std::string& title,
+                                   const std::string& reason) {
+  CheckSection section;
+  section.part = part;
+  StepResult step;
+  step.id = part + ".check";
+  step.title = title;
+  step.reason = reason;
+  section.steps.push_back(std::move(step));
+  return section;
+}
+
 }  // namespace trainer::hil
