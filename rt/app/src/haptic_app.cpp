@@ -3,6 +3,7 @@
 #include <string>
 
 #include "haptic_stages.hpp"
+#include "trainer/app/hal_taps.hpp"
 
 namespace trainer::app {
 namespace {
@@ -125,7 +126,9 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
 core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   ++stats_.cycles;
   frame_.timing = timing;
+  if (recorder_ != nullptr) recorder_->begin_cycle(timing);
   runner_.run(frame_, stats_.phase_ns);
+  if (recorder_ != nullptr) record_cycle();
   return frame_.encoders_ok ? core::Status::ok()
                             : core::Status{core::StatusCode::io_error, "encoder read failed"};
 }
@@ -137,6 +140,11 @@ void HapticApp::request_reset() noexcept {
 void HapticApp::on_overrun_fault(std::uint32_t streak) noexcept {
   safety_.latch(safety::Fault::overrun_streak, stats_.cycles);
   stages_->write->write_zero(frame_.commands);
+  if (recorder_ != nullptr && recorder_->recording()) {
+    recorder_->pending().overrun_fault_streak = streak;
+    recorder_->pending().latched_faults = safety_.latched_faults();
+    recorder_->pending().state_hash = state_hash();
+  }
   log_.write(clock_.now_ns(), core::LogLevel::error, "overrun streak of {} cycles: force zeroed",
              streak);
 }

@@ -11,6 +11,7 @@
 
 #include "trainer/app/report.hpp"
 #include "trainer/app/rt_self_check.hpp"
+#include "trainer/app/session_recording.hpp"
 #include "trainer/app/trainer_run.hpp"
 
 namespace {
@@ -68,9 +69,24 @@ int main(int argc, char** argv) {
   bool no_arm = false;
   bool no_rt = false;
 
-  cli.add_option("--scene", options.scene_file, "Scene file (TOML), e.g. config/scenes/wall.toml")
-      ->required()
-      ->check(CLI::ExistingFile);
+  auto* scene_opt =
+      cli.add_option("--scene", options.scene_file,
+                     "Scene file (TOML), e.g. config/scenes/wall.toml (required unless --replay)")
+          ->check(CLI::ExistingFile);
+  std::string record_file;
+  std::string replay_file;
+  auto* record_opt = cli.add_option(
+      "--record", record_file,
+      "Record the session into this MCAP file: every cycle's HAL inputs, outputs and model "
+      "state hash (docs/recording.md)");
+  auto* replay_opt =
+      cli.add_option("--replay", replay_file,
+                     "Rerun a recording's cycles in simulated time on its recorded inputs and "
+                     "compare every output and state hash (exit 0 identical, 3 a difference, "
+                     "4 identical up to damage or a gap in the file)")
+          ->check(CLI::ExistingFile)
+          ->excludes(scene_opt)
+          ->excludes(record_opt);
   std::string device_file;
   auto* device_opt =
       cli.add_option("--device", device_file,
@@ -136,6 +152,23 @@ int main(int argc, char** argv) {
       "self-check failure), 2 usage error, 3 run completed with a fault latched.");
   CLI11_PARSE(cli, argc, argv);
 
+  if (*replay_opt) {
+    auto replayed = trainer::app::replay_recording(replay_file);
+    if (!replayed) {
+      std::cerr << "trainer: " << replayed.error().message << "\n";
+      return 1;
+    }
+    std::cout << "replay of " << replay_file << " (scene " << replayed->scene_name
+              << "): " << trainer::app::replay_summary(*replayed) << "\n";
+    if (replayed->first_difference_cycle) return 3;
+    return replayed->identical ? 0 : 4;
+  }
+  if (!*scene_opt) {
+    std::cerr << "trainer: --scene is required (unless --replay)\n";
+    return 2;
+  }
+  if (*record_opt) options.record_file = record_file;
+
   if (*device_opt) options.device_file = device_file;
   if (*cycles_opt) options.cycles = cycles;
   if (*seconds_opt) options.seconds = seconds;
@@ -188,6 +221,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::cout << trainer::app::report_summary(*result);
+  if (!result->recording_file.empty()) {
+    std::cout << "  recording: " << result->recording_file << ", " << result->recorded_cycles
+              << " cycles, " << result->recording_bytes << " bytes, "
+              << result->recording_dropped_cycles << " dropped (ring full)";
+    if (!result->recording_error.empty()) std::cout << ", stopped: " << result->recording_error;
+    std::cout << "\n";
+  }
   if (!report_dir.empty()) {
     report_file = trainer_report_path(report_dir, result->scene_name, started).string();
   }

@@ -12,6 +12,7 @@
 #include "trainer/app/device_wiring.hpp"
 #include "trainer/app/rt_self_check.hpp"
 #include "trainer/app/service_supervision.hpp"
+#include "trainer/app/session_recording.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
@@ -97,6 +98,8 @@ struct RunSetup {
   std::unique_ptr<core::LogRing> log = std::make_unique<core::LogRing>();
   std::unique_ptr<core::TripleBuffer<TelemetrySnapshot>> telemetry =
       std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
+  std::unique_ptr<HalTaps> taps;                // --record: before the app that uses them
+  std::unique_ptr<SessionRecorder> recorder;
   std::unique_ptr<HapticApp> app;
   std::uint64_t cycles = 0;
   std::string backend;  // "sim" or the device file's hardware backend
@@ -174,10 +177,27 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
   setup.arena.emplace(std::move(*arena));
   HalBinding binding{device.encoders(), device.actuators(), device.digital_inputs(),
                      device.digital_outputs()};
+  if (options.record_file) {
+    auto taps = HalTaps::create(binding, nullptr);
+    if (!taps) return fail(std::move(taps).error());
+    setup.taps = std::move(*taps);
+    binding = setup.taps->binding();
+  }
   auto app =
       HapticApp::create(cfg, binding, *setup.arena, *setup.log, *setup.telemetry, *setup.clock);
   if (!app) return fail(std::move(app).error());
   setup.app = std::move(*app);
+  if (options.record_file) {
+    auto recorder = SessionRecorder::open(
+        *options.record_file,
+        session_info(cfg, setup.app->models(),
+                     options.time_source == TimeSource::real ? "real" : "simulated",
+                     device.digital_inputs() != nullptr, device.digital_outputs() != nullptr));
+    if (!recorder) return fail(std::move(recorder).error());
+    setup.recorder = std::move(*recorder);
+    setup.taps->set_ring(&setup.recorder->ring());
+    setup.app->set_recorder(setup.taps.get());
+  }
   // The trainee script plays on the simulated bench only; on hardware a person moves the
   // handles and the run lasts --cycles/--seconds or until a stop signal.
   const double script_duration_s = setup.sim != nullptr ? setup.sim->script_duration_s() : 0.0;
@@ -243,6 +263,7 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
     core::alloc::begin_counting_this_thread();
     const std::uint64_t before = core::alloc::counted_allocations();
     periodic.run(haptic, stop);
+    if (setup.taps) setup.taps->finish();  // the last cycle's record, before shutdown's writes
     result.heap_allocations_after_arming = core::alloc::counted_allocations() - before;
     core::alloc::end_counting_this_thread();
     record_safety(haptic.safety(), result);
@@ -257,6 +278,7 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
       stop.store(true, std::memory_order_release);
     }
     drain_log(*setup.log, options);
+    if (setup.recorder) setup.recorder->drain();
     if (setup.telemetry->update()) {
       service.observe(setup.telemetry->latest());
       if (options.on_telemetry) options.on_telemetry(setup.telemetry->latest());
@@ -337,6 +359,14 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   auto ran = run_loop(options, setup, signals, result);
   drain_log(*setup.log, options);
   setup.device->deactivate();
+  if (setup.recorder) {
+    setup.recorder->close();
+    result.recording_file = setup.recorder->path().string();
+    result.recorded_cycles = setup.recorder->records();
+    result.recording_dropped_cycles = setup.recorder->dropped();
+    result.recording_bytes = setup.recorder->bytes();
+    result.recording_error = setup.recorder->error();
+  }
   if (!ran) return std::move(ran).error();
   // A bus's drives report their state only in PDOs, which stop with the deactivation: ask them.
   bool status_known = true;

@@ -48,6 +48,7 @@ bool ReadStage::read_inputs(CycleFrame& frame) noexcept {
 
 void ReadStage::run(CycleFrame& frame) noexcept {
   const bool reset_requested = reset_requested_.exchange(false, std::memory_order_acq_rel);
+  frame.reset_requested = reset_requested;
   frame.conditions = safety::InputConditions{};
   frame.encoders_ok = read_inputs(frame);
   // A reset clears only faults that have been reported: one raised since the last cycle

@@ -72,6 +72,7 @@ struct CycleFrame {
   safety::InputConditions conditions{};
   bool encoders_ok = false;
   bool newly_armed = false;                       // the safety chain armed in this cycle's hal_read
+  bool reset_requested = false;                   // hal_read took an explicit reset request
   std::span<hal::EncoderSample> encoder_samples;  // joint-side SI, per channel
   std::span<hal::ActuatorStatus> actuator_status;
   // kinematics and the model stages.

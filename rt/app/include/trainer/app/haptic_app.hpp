@@ -37,6 +37,7 @@
 namespace trainer::app {
 
 class HapticStages;  // the stage objects (rt/app/src/haptic_stages.hpp)
+class HalTaps;       // the session recording's HAL taps (hal_taps.hpp)
 
 class HapticApp final : public loop::CycleTask {
   // The property test (tests/rt/app/haptic_app_property_test.cpp) puts the models in random
@@ -57,6 +58,16 @@ class HapticApp final : public loop::CycleTask {
 
   core::Status run_cycle(const loop::CycleTiming& timing) noexcept override;
   void on_overrun_fault(std::uint32_t streak) noexcept override;
+
+  // Setup path: record every cycle through `taps` (the HAL taps the app was created on, see
+  // hal_taps.hpp): each cycle opens a record, the taps fill in what the HAL returned, the app
+  // adds the reset taken, the latched faults, the state hash and the derived block.
+  void set_recorder(HalTaps* taps) noexcept { recorder_ = taps; }
+  // XXH3-64 of the state that determines future outputs (docs/recording.md "State hash"):
+  // modal coordinates, velocities, accelerations and pending catheter loads; tensor
+  // displacements and contact state; catheter particles and velocities; the instruments'
+  // previous tips; the safety chain's latched faults and passivity energy. RT, no heap.
+  std::uint64_t state_hash() const noexcept;
 
   // From any thread: ask the safety chain to arm at the next cycle (an explicit reset).
   void request_reset() noexcept;
@@ -99,6 +110,9 @@ class HapticApp final : public loop::CycleTask {
   CycleFrame frame_{};
   std::unique_ptr<HapticStages> stages_;
   StageRunner runner_{stage_clock_};
+  HalTaps* recorder_ = nullptr;
+
+  void record_cycle() noexcept;
 };
 
 }  // namespace trainer::app

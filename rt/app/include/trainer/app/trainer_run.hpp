@@ -55,6 +55,9 @@ struct RunOptions {
   bool arm = true;                // issue the explicit reset that arms the safety chain
   // Called from the supervisor thread about 30 times a second with the newest snapshot.
   std::function<void(const TelemetrySnapshot&)> on_telemetry;
+  // Record the session into this MCAP file (docs/recording.md): every cycle's HAL inputs,
+  // outputs and state hash, written by the supervisor thread from a lock-free ring.
+  std::optional<std::filesystem::path> record_file;
   // Receives formatted log lines drained from the RT log ring (default: stderr).
   std::function<void(const std::string&)> on_log;
 };
@@ -88,6 +91,13 @@ struct RunResult {
   std::size_t arena_bytes_capacity = 0;
   std::uint64_t log_records_dropped = 0;
   bool outputs_zeroed_at_exit = false;
+  // The session recording (--record): file, cycles written, cycles a full ring dropped,
+  // bytes, the first write error (the run goes on without recording).
+  std::string recording_file;
+  std::uint64_t recorded_cycles = 0;
+  std::uint64_t recording_dropped_cycles = 0;
+  std::uint64_t recording_bytes = 0;
+  std::string recording_error;
   double wall_time_s = 0.0;
   std::vector<std::string> instrument_names;
   std::vector<LoadedModelInfo> models;

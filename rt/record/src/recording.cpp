@@ -1,0 +1,131 @@
+#include "trainer/record/recording.hpp"
+
+#include <cstring>
+
+namespace trainer::record {
+namespace {
+
+// The schema's data: where the layout is documented (the bytes are the struct's).
+constexpr const char* kCycleSchemaText =
+    "trainer CycleRecord, layout 1: the bytes of struct trainer::record::CycleRecord "
+    "(rt/record/include/trainer/record/cycle_record.hpp), little-endian, no padding; "
+    "byte offsets in docs/recording.md";
+
+}  // namespace
+
+core::Expected<void> RecordingWriter::open(const std::filesystem::path& path,
+                                           const SessionInfo& session,
+                                           mcap::Compression compression) {
+  mcap::WriterOptions options;
+  options.profile = kProfile;
+  options.library = "trainer rt/record";
+  options.compression = compression;
+  if (auto opened = writer_.open(path, options); !opened) return opened;
+  const std::string schema = kCycleSchemaText;
+  if (auto added = writer_.add_schema(
+          1, "trainer.CycleRecord", kCycleEncoding,
+          {reinterpret_cast<const std::uint8_t*>(schema.data()), schema.size()});
+      !added)
+    return added;
+  if (auto added = writer_.add_channel(
+          kCycleChannel, 1, kCycleTopic, kCycleEncoding,
+          {{"layout", std::to_string(kCycleRecordLayout)},
+           {"record_bytes", std::to_string(sizeof(CycleRecord))}});
+      !added)
+    return added;
+  return writer_.add_metadata("session", session);
+}
+
+core::Expected<void> RecordingWriter::add(const CycleRecord& record) {
+  ++records_;
+  return writer_.add_message(
+      kCycleChannel, static_cast<std::uint32_t>(record.cycle_index),
+      static_cast<std::uint64_t>(record.wake_ns), static_cast<std::uint64_t>(record.wake_ns),
+      {reinterpret_cast<const std::uint8_t*>(&record), sizeof record});
+}
+
+core::Expected<void> RecordingWriter::close(std::uint64_t dropped_cycles) {
+  if (auto flushed = writer_.flush_chunk(); !flushed) return flushed;
+  if (auto added = writer_.add_metadata("session_end",
+                                        {{"cycles_recorded", std::to_string(records_)},
+                                         {"cycles_dropped", std::to_string(dropped_cycles)}});
+      !added)
+    return added;
+  return writer_.close();
+}
+
+namespace {
+
+class CycleVisitor final : public mcap::Visitor {
+ public:
+  CycleVisitor(RecordingScan& scan, const std::function<bool(const CycleRecord&)>& on_record)
+      : scan_(scan), on_record_(on_record) {}
+
+  void on_metadata(const std::string& name, const SessionInfo& metadata) override {
+    if (name == "session") {
+      scan_.session = metadata;
+      have_session_ = true;
+    } else if (name == "session_end") {
+      scan_.session_end = metadata;
+    }
+  }
+  void on_channel(const mcap::Channel& channel) override {
+    if (channel.id != kCycleChannel) return;
+    const auto layout = channel.metadata.find("layout");
+    if (channel.message_encoding != kCycleEncoding || layout == channel.metadata.end() ||
+        layout->second != std::to_string(kCycleRecordLayout)) {
+      error_ = "channel " + std::string(kCycleTopic) + " holds encoding '" +
+               channel.message_encoding + "' layout '" +
+               (layout == channel.metadata.end() ? std::string("?") : layout->second) +
+               "'; this program reads " + kCycleEncoding + " layout " +
+               std::to_string(kCycleRecordLayout);
+    }
+  }
+  bool on_message(const mcap::Message& message) override {
+    if (!error_.empty()) return false;
+    if (message.channel != kCycleChannel) return true;
+    if (!have_session_) {
+      error_ = "a cycle record comes before the session metadata";
+      return false;
+    }
+    if (message.data.size() != sizeof(CycleRecord)) {
+      error_ = "cycle record " + std::to_string(scan_.records) + " has " +
+               std::to_string(message.data.size()) + " bytes, expected " +
+               std::to_string(sizeof(CycleRecord));
+      return false;
+    }
+    CycleRecord record;
+    std::memcpy(&record, message.data.data(), sizeof record);
+    ++scan_.records;
+    return on_record_(record);
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  RecordingScan& scan_;
+  const std::function<bool(const CycleRecord&)>& on_record_;
+  bool have_session_ = false;
+  std::string error_;
+};
+
+}  // namespace
+
+core::Expected<RecordingScan> scan_recording(
+    const std::filesystem::path& path, const std::function<bool(const CycleRecord&)>& on_record) {
+  auto bytes = mcap::read_file(path);
+  if (!bytes) return std::move(bytes).error();
+  RecordingScan scan;
+  CycleVisitor visitor(scan, on_record);
+  auto scanned = mcap::scan(*bytes, visitor);
+  if (!scanned) return core::make_error(path.string() + ": " + scanned.error().message);
+  if (!visitor.error().empty()) return core::make_error(path.string() + ": " + visitor.error());
+  scan.mcap = *scanned;
+  if (scan.session.empty() && scan.records == 0) {
+    return core::make_error(path.string() + ": no session metadata" +
+                            (scan.mcap.damage.empty() ? std::string()
+                                                      : " (" + scan.mcap.damage + ")"));
+  }
+  return scan;
+}
+
+}  // namespace trainer::record
