@@ -1,0 +1,353 @@
+// Session recording and bit-exact replay through the trainer (docs/recording.md), on the
+// reference cbd scene (duct + catheter + two forceps) on the simulated bench:
+//  - a recorded session replays with every output and state hash identical, and recording
+//    allocates nothing on the RT thread;
+//  - one encoder input changed at cycle k (rewritten through the library) is reported at k;
+//  - a truncated file and a flipped byte replay up to the damage and say where it is;
+//  - a gap (a cycle the ring dropped) is refused at the missing cycle; a changed image is
+//    refused before anything runs;
+//  - a real-clock run (dt measured, overruns possible) replays bit-exactly too;
+//  - the HAL taps count records a full ring refused.
+// The scene runs from a private copy with its own images, so tests building the shared ones
+// in out/ at the same time cannot change an image under a replay.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "catheter_images.hpp"
+#include "model_spec.hpp"
+#include "trainer/app/hal_taps.hpp"
+#include "trainer/app/session_recording.hpp"
+#include "trainer/app/trainer_run.hpp"
+#include "trainer/config/scene.hpp"
+#include "trainer/core/alloc_counter.hpp"
+#include "trainer/model_offline/modal_build.hpp"
+#include "trainer/record/recording.hpp"
+
+namespace trainer::app {
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kRepo{TRAINER_SOURCE_DIR};
+constexpr std::uint64_t kCycles = 4000;
+
+std::string file_text(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void write_text(const fs::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << "'" << from << "' not in the text";
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+// A private copy of the cbd scene (models with their images in the directory), built once.
+class CbdCopy {
+ public:
+  static const CbdCopy& get() {
+    static const CbdCopy copy;
+    return copy;
+  }
+  fs::path dir;
+  fs::path scene;
+  std::string error;
+  ~CbdCopy() {
+    std::error_code ignored;
+    fs::remove_all(dir, ignored);
+  }
+
+ private:
+  CbdCopy() : dir(fs::temp_directory_path() / ("trainer_recording_" + std::to_string(::getpid()))) {
+    fs::create_directories(dir / "scenes");
+    fs::create_directories(dir / "models");
+    write_text(dir / "models/duct.toml",
+               replaced(file_text(kRepo / "config/models/duct.toml"),
+                        "image = \"../../out/models/duct.img\"", "image = \"duct.img\""));
+    write_text(dir / "models/catheter_cbd.toml",
+               replaced(file_text(kRepo / "config/models/catheter_cbd.toml"),
+                        "image = \"../../out/models/catheter_cbd.img\"",
+                        "image = \"catheter_cbd.img\""));
+    std::string scene_text = file_text(kRepo / "config/scenes/cbd.toml");
+    scene_text = replaced(scene_text, "device = \"../devices/sim.toml\"",
+                          "device = \"" + (kRepo / "config/devices/sim.toml").string() + "\"");
+    scene_text =
+        replaced(scene_text, "script = \"../trajectories/cbd_insertion.csv\"",
+                 "script = \"" + (kRepo / "config/trajectories/cbd_insertion.csv").string() + "\"");
+    scene = dir / "scenes/cbd.toml";
+    write_text(scene, scene_text);
+    error = test::build_catheter_images(scene);
+    if (!error.empty()) return;
+    auto loaded = config::load_scene(scene);
+    if (!loaded) {
+      error = loaded.error().message;
+      return;
+    }
+    for (const config::SceneModelConfig& entry : loaded->models) {
+      if (entry.definition.kind != config::ModelKind::modal_shell) continue;
+      auto spec = tools::modelc::modal_spec_from(entry.definition);
+      if (!spec) {
+        error = spec.error().message;
+        return;
+      }
+      auto build = model::offline::build_modal_model(*spec);
+      if (!build) {
+        error = build.error().message;
+        return;
+      }
+      if (auto written =
+              model::offline::write_modal_image(*spec, *build, entry.definition.image_path);
+          !written) {
+        error = written.error().message;
+      }
+    }
+  }
+};
+
+fs::path temp_path(const std::string& name) {
+  return CbdCopy::get().dir / (name + ".mcap");
+}
+
+RunOptions cbd_options(const fs::path& record_file) {
+  RunOptions options;
+  options.scene_file = CbdCopy::get().scene;
+  options.time_source = TimeSource::simulated;
+  options.cycles = kCycles;
+  options.on_log = [](const std::string&) {};
+  options.record_file = record_file;
+  return options;
+}
+
+// The recorded session of the cbd scene, recorded once per test program.
+const fs::path& cbd_recording() {
+  static const fs::path path = [] {
+    const fs::path file = temp_path("cbd");
+    auto result = run_trainer(cbd_options(file));
+    EXPECT_TRUE(result) << (result ? "" : result.error().message);
+    return file;
+  }();
+  return path;
+}
+
+// Copies a recording through the library: `edit_session` may change the metadata, `edit`
+// a record (false leaves it out).
+void rewrite(const fs::path& from, const fs::path& to,
+             const std::function<bool(record::CycleRecord&)>& edit,
+             const std::function<void(record::SessionInfo&)>& edit_session = {}) {
+  std::vector<record::CycleRecord> records;
+  auto scan = record::scan_recording(from, [&](const record::CycleRecord& r) {
+    records.push_back(r);
+    return true;
+  });
+  ASSERT_TRUE(scan) << scan.error().message;
+  record::SessionInfo session = scan->session;
+  if (edit_session) edit_session(session);
+  record::RecordingWriter writer;
+  ASSERT_TRUE(writer.open(to, session));
+  for (record::CycleRecord& r : records) {
+    if (edit(r)) {
+      ASSERT_TRUE(writer.add(r));
+    }
+  }
+  ASSERT_TRUE(writer.close(0));
+}
+
+class Recording : public ::testing::Test {
+ protected:
+  void SetUp() override { ASSERT_EQ(CbdCopy::get().error, "") << "cbd copy and images"; }
+};
+
+TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
+  const fs::path file = temp_path("cbd_heap");
+  ASSERT_TRUE(core::alloc::hooks_installed());
+  auto result = run_trainer(cbd_options(file));
+  ASSERT_TRUE(result) << result.error().message;
+  EXPECT_EQ(result->heap_allocations_after_arming, 0U);  // taps, hash and ring push included
+  EXPECT_EQ(result->recorded_cycles, kCycles);
+  EXPECT_EQ(result->recording_dropped_cycles, 0U);
+  EXPECT_EQ(result->recording_error, "");
+  EXPECT_EQ(result->models.size(), 2U);
+
+  auto replay = replay_recording(file);
+  ASSERT_TRUE(replay) << replay.error().message;
+  EXPECT_TRUE(replay->identical) << replay_summary(*replay);
+  EXPECT_EQ(replay->cycles_replayed, kCycles);
+  EXPECT_TRUE(replay->complete);
+  EXPECT_EQ(replay_summary(*replay), "4000 cycles, all outputs and state hashes identical");
+
+  // The recording holds what the session did: contacts with the duct, distinct state hashes.
+  std::uint64_t contact_cycles = 0;
+  std::uint64_t hash_changes = 0;
+  std::uint64_t previous_hash = 0;
+  auto scan = record::scan_recording(file, [&](const record::CycleRecord& r) {
+    if (r.derived.instruments[1].tissue_contact != 0) ++contact_cycles;
+    if (r.state_hash != previous_hash) ++hash_changes;
+    previous_hash = r.state_hash;
+    return true;
+  });
+  ASSERT_TRUE(scan);
+  EXPECT_GT(contact_cycles, 100U);
+  EXPECT_GT(hash_changes, kCycles / 2);
+}
+
+TEST_F(Recording, OneChangedEncoderInputIsReportedAtItsCycle) {
+  // The right forceps press the duct from cycle ~1000 on; its insertion joint (device
+  // instrument 1, joint 2: channel 7) moved by 0.1 mm at cycle 3000 changes that cycle.
+  constexpr std::uint64_t kChanged = 3000;
+  const fs::path changed = temp_path("changed");
+  rewrite(cbd_recording(), changed, [](record::CycleRecord& r) {
+    if (r.cycle_index == kChanged) r.encoders[7].position += 1e-4F;
+    return true;
+  });
+  auto replay = replay_recording(changed);
+  ASSERT_TRUE(replay) << replay.error().message;
+  EXPECT_FALSE(replay->identical);
+  ASSERT_TRUE(replay->first_difference_cycle.has_value()) << replay_summary(*replay);
+  EXPECT_EQ(*replay->first_difference_cycle, kChanged) << replay->difference;
+  EXPECT_EQ(replay->cycles_replayed, kChanged);
+  // The force on the duct changed: the command of one of the right instrument's channels.
+  EXPECT_EQ(replay->difference.rfind("command[channel ", 0), 0U) << replay->difference;
+  EXPECT_NE(replay_summary(*replay).find("replay differs at cycle 3000: command[channel "),
+            std::string::npos);
+}
+
+TEST_F(Recording, TruncatedAndCorruptFilesReplayUpToTheDamage) {
+  const auto bytes = *record::mcap::read_file(cbd_recording());
+  const fs::path cut = temp_path("cut");
+  {
+    std::ofstream out(cut, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size() * 2 / 3));
+  }
+  auto truncated = replay_recording(cut);
+  ASSERT_TRUE(truncated) << truncated.error().message;
+  EXPECT_FALSE(truncated->identical);
+  EXPECT_FALSE(truncated->first_difference_cycle.has_value());
+  EXPECT_GT(truncated->cycles_replayed, 1000U);
+  EXPECT_LT(truncated->cycles_replayed, kCycles);
+  EXPECT_NE(truncated->damage.find("truncated"), std::string::npos) << truncated->damage;
+
+  auto flipped_bytes = bytes;
+  flipped_bytes[bytes.size() / 2] ^= 0x01;
+  const fs::path flipped = temp_path("flipped");
+  {
+    std::ofstream out(flipped, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(flipped_bytes.data()),
+              static_cast<std::streamsize>(flipped_bytes.size()));
+  }
+  auto corrupt = replay_recording(flipped);
+  ASSERT_TRUE(corrupt) << corrupt.error().message;
+  EXPECT_FALSE(corrupt->identical);
+  EXPECT_FALSE(corrupt->first_difference_cycle.has_value());
+  EXPECT_LT(corrupt->cycles_replayed, kCycles);
+  EXPECT_NE(corrupt->damage.find("byte "), std::string::npos) << corrupt->damage;
+  EXPECT_NE(replay_summary(*corrupt).find("identical up to the damage"), std::string::npos);
+}
+
+TEST_F(Recording, GapAndChangedImageAreRefused) {
+  const fs::path gap = temp_path("gap");
+  rewrite(cbd_recording(), gap, [](record::CycleRecord& r) { return r.cycle_index != 1234; });
+  auto gapped = replay_recording(gap);
+  ASSERT_TRUE(gapped) << gapped.error().message;
+  EXPECT_FALSE(gapped->identical);
+  EXPECT_EQ(gapped->cycles_replayed, 1234U);
+  EXPECT_NE(gapped->damage.find("cycle 1234 is missing"), std::string::npos) << gapped->damage;
+
+  const fs::path other_image = temp_path("other_image");
+  rewrite(
+      cbd_recording(), other_image, [](record::CycleRecord&) { return true; },
+      [](record::SessionInfo& session) { session["model.0.image_checksum"] = "12345"; });
+  auto refused = replay_recording(other_image);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("model 'duct' image"), std::string::npos)
+      << refused.error().message;
+  EXPECT_NE(refused.error().message.find("the recording 12345"), std::string::npos);
+}
+
+TEST_F(Recording, RealClockRunReplaysBitExactly) {
+  const fs::path file = temp_path("real");
+  RunOptions options = cbd_options(file);
+  options.time_source = TimeSource::real;
+  options.apply_rt_settings = false;
+  options.cycles = 500;
+  auto result = run_trainer(options);
+  ASSERT_TRUE(result) << result.error().message;
+  EXPECT_EQ(result->recorded_cycles, 500U);
+  auto replay = replay_recording(file);
+  ASSERT_TRUE(replay) << replay.error().message;
+  EXPECT_TRUE(replay->identical) << replay_summary(*replay);
+  EXPECT_EQ(replay->cycles_replayed, 500U);
+  // Measured dt: the wake-to-wake intervals were recorded, not the nominal period.
+  bool measured_dt = false;
+  auto scan = record::scan_recording(file, [&](const record::CycleRecord& r) {
+    if (r.cycle_index > 0 && r.dt_s != 1e-3) measured_dt = true;
+    return true;
+  });
+  ASSERT_TRUE(scan);
+  EXPECT_TRUE(measured_dt);
+}
+
+// A HAL of one encoder and one actuator, for the taps alone.
+class OneChannel final : public hal::EncoderInterface, public hal::ActuatorInterface {
+ public:
+  std::size_t encoder_count() const noexcept override { return 1; }
+  hal::ReturnCode read_encoders(std::span<hal::EncoderSample> out) noexcept override {
+    out[0].position = 0.5F;
+    out[0].valid = true;
+    return hal::ReturnCode::ok;
+  }
+  std::size_t actuator_count() const noexcept override { return 1; }
+  hal::ReturnCode write_actuators(std::span<const hal::ActuatorCommand>) noexcept override {
+    return hal::ReturnCode::error;
+  }
+  hal::ReturnCode read_actuator_status(std::span<hal::ActuatorStatus>) noexcept override {
+    return hal::ReturnCode::ok;
+  }
+};
+
+TEST(HalTaps, RecordWhatPassesAndCountAFullRing) {
+  OneChannel hal;
+  auto ring = std::make_unique<RecordRing>();
+  auto taps = HalTaps::create(HalBinding{&hal, &hal, nullptr, nullptr}, ring.get());
+  ASSERT_TRUE(taps);
+  HalTaps& tap = **taps;
+  EXPECT_EQ(tap.binding().digital_inputs, nullptr);
+  const std::uint64_t cycles = kRecordRingCapacity + 100;
+  std::array<hal::EncoderSample, 1> samples{};
+  std::array<hal::ActuatorCommand, 1> commands{{{0.25F, true}}};
+  for (std::uint64_t k = 0; k < cycles; ++k) {
+    tap.begin_cycle(loop::CycleTiming{k, 0, 0, 1e-3, 0});
+    EXPECT_EQ(tap.binding().encoders->read_encoders(samples), hal::ReturnCode::ok);
+    EXPECT_EQ(tap.binding().actuators->write_actuators(commands), hal::ReturnCode::error);
+  }
+  tap.finish();
+  EXPECT_EQ(ring->dropped(), 100U);  // the RT side never waits: the newest are dropped
+  EXPECT_EQ(tap.pushed(), kRecordRingCapacity);
+  record::CycleRecord first{};
+  ASSERT_TRUE(ring->pop(first));
+  EXPECT_EQ(first.cycle_index, 0U);
+  EXPECT_EQ(first.channel_count, 1U);
+  EXPECT_EQ(first.encoders[0].position, 0.5F);
+  EXPECT_EQ(first.encoder_rc, 0U);
+  EXPECT_EQ(first.commands[0].effort, 0.25F);
+  EXPECT_EQ(first.actuator_write_rc, 1U);  // error, as the HAL returned it
+  EXPECT_EQ(first.status_rc, record::kNotCalled);
+}
+
+}  // namespace
+}  // namespace trainer::app
