@@ -8,6 +8,10 @@
 //                                 plant's integration, to publish), one iteration per cycle
 //   BM_CbdStage/<stage>           the cbd cycle again, each iteration timed as one stage alone
 //                                 (the StageRunner's own clock reads, as the report's split)
+//   BM_SceneCycleRecorded/cbd     the full cycle with the session recording on (HAL taps, state
+//                                 hash, derived block, ring push; the ring drained untimed)
+//   BM_CbdStateHash               the state hash alone, after each cycle (docs/recording.md)
+//   BM_CbdRecordPush              the cycle's record (912 bytes) copied into the ring alone
 // Counters: p50/p99/p99.9/max of the per-cycle time (µs) and heap allocations per cycle
 // (counted by the allocation hooks). Times are real-clock, warm caches: compute only.
 //
@@ -21,6 +25,7 @@
 #include <optional>
 #include <string>
 
+#include "trainer/app/hal_taps.hpp"
 #include "trainer/app/haptic_app.hpp"
 #include "trainer/app/device_wiring.hpp"
 #include "trainer/config/scene.hpp"
@@ -35,14 +40,15 @@ using namespace trainer;
 // One scene on the simulated bench in simulated time, armed, from cycle 0 to the script's end.
 class SceneSession {
  public:
-  static std::unique_ptr<SceneSession> open(const std::string& scene_file, std::string& error) {
+  static std::unique_ptr<SceneSession> open(const std::string& scene_file, std::string& error,
+                                            bool record = false) {
     auto scene = config::load_scene(std::string(TRAINER_SOURCE_DIR) + "/" + scene_file);
     if (!scene) {
       error = scene.error().message;
       return nullptr;
     }
     std::unique_ptr<SceneSession> session(new SceneSession(std::move(*scene)));
-    if (auto started = session->start(); !started) {
+    if (auto started = session->start(record); !started) {
       error = started.error().message;
       return nullptr;
     }
@@ -61,22 +67,38 @@ class SceneSession {
     benchmark::DoNotOptimize(app_->run_cycle(timing_));
   }
   const app::HapticApp& app() const noexcept { return *app_; }
+  // The cycle's record into the ring now (what the next cycle's start does).
+  void push_record() noexcept {
+    if (taps_) taps_->begin_cycle(timing_);
+  }
+  // The consumer's side of the recording (untimed): empties the ring.
+  void drain() noexcept {
+    if (!ring_) return;
+    while (ring_->pop(record_)) benchmark::DoNotOptimize(record_.state_hash);
+  }
 
  private:
   explicit SceneSession(config::SceneConfig scene) : scene_(std::move(scene)) {}
-  core::Expected<void> start() {
+  core::Expected<void> start(bool record) {
     device_ = std::make_unique<hal::sim::SimDevice>(clock_, app::sim_params_from(scene_));
     if (auto ok = device_->configure(); !ok) return ok;
     if (auto ok = device_->activate(); !ok) return ok;
     auto arena = core::Arena::create(scene_.memory.arena_bytes);
     if (!arena) return std::move(arena).error();
     arena_.emplace(std::move(*arena));
-    auto app = app::HapticApp::create(scene_,
-                                      {device_->encoders(), device_->actuators(),
-                                       device_->digital_inputs(), device_->digital_outputs()},
-                                      *arena_, log_, telemetry_, clock_);
+    app::HalBinding binding{device_->encoders(), device_->actuators(),
+                            device_->digital_inputs(), device_->digital_outputs()};
+    if (record) {
+      ring_ = std::make_unique<app::RecordRing>();
+      auto taps = app::HalTaps::create(binding, ring_.get());
+      if (!taps) return std::move(taps).error();
+      taps_ = std::move(*taps);
+      binding = taps_->binding();
+    }
+    auto app = app::HapticApp::create(scene_, binding, *arena_, log_, telemetry_, clock_);
     if (!app) return std::move(app).error();
     app_ = std::move(*app);
+    if (taps_) app_->set_recorder(taps_.get());
     arena_->seal();
     app_->request_reset();
     // As the trainer runs a scripted scene: the script, then half a second more.
@@ -93,6 +115,9 @@ class SceneSession {
   std::optional<core::Arena> arena_;
   core::LogRing log_;
   core::TripleBuffer<app::TelemetrySnapshot> telemetry_;
+  std::unique_ptr<app::RecordRing> ring_;
+  std::unique_ptr<app::HalTaps> taps_;
+  record::CycleRecord record_{};
   std::unique_ptr<app::HapticApp> app_;
   loop::CycleTiming timing_{};
   std::uint64_t cycle_ = 0;
@@ -101,10 +126,13 @@ class SceneSession {
 
 // Runs whole sessions of `scene_file`, one cycle per iteration; the iteration's time is the
 // full cycle, or only `stage` when given.
+enum class Timed : std::uint8_t { cycle, state_hash, record_push };
+
 void run_sessions(benchmark::State& state, const std::string& scene_file,
-                  std::optional<app::CyclePhase> stage) {
+                  std::optional<app::CyclePhase> stage, bool record = false,
+                  Timed timed = Timed::cycle) {
   std::string error;
-  auto session = SceneSession::open(scene_file, error);
+  auto session = SceneSession::open(scene_file, error, record);
   if (!session) {
     state.SkipWithError(
         (error + " (build the images: modelc build --scene " + scene_file + ")").c_str());
@@ -118,7 +146,7 @@ void run_sessions(benchmark::State& state, const std::string& scene_file,
     if (session->finished()) {
       state.PauseTiming();
       session.reset();
-      session = SceneSession::open(scene_file, error);
+      session = SceneSession::open(scene_file, error, record);
       ++sessions;
       state.ResumeTiming();
       if (!session) {
@@ -130,9 +158,19 @@ void run_sessions(benchmark::State& state, const std::string& scene_file,
     const std::uint64_t before = core::alloc::counted_allocations();
     const std::int64_t start_ns = clock.now_ns();
     session->step();
-    const std::int64_t cycle_time_ns = clock.now_ns() - start_ns;
+    std::int64_t cycle_time_ns = clock.now_ns() - start_ns;
+    if (timed == Timed::state_hash) {
+      const std::int64_t hash_start_ns = clock.now_ns();
+      benchmark::DoNotOptimize(session->app().state_hash());
+      cycle_time_ns = clock.now_ns() - hash_start_ns;
+    } else if (timed == Timed::record_push) {
+      const std::int64_t push_start_ns = clock.now_ns();
+      session->push_record();
+      cycle_time_ns = clock.now_ns() - push_start_ns;
+    }
     allocations += core::alloc::counted_allocations() - before;
     core::alloc::end_counting_this_thread();
+    session->drain();
     const std::int64_t ns = stage ? session->app().last_stage_ns(*stage) : cycle_time_ns;
     cycle_ns.record(ns);
     state.SetIterationTime(static_cast<double>(ns) * 1e-9);
@@ -157,6 +195,21 @@ BENCHMARK_CAPTURE(BM_SceneCycle, cbd, std::string("config/scenes/cbd.toml"))
     ->UseManualTime()
     ->Iterations(kCbdIterations)
     ->Unit(benchmark::kMicrosecond);
+void BM_SceneCycleRecorded(benchmark::State& state, const std::string& scene_file) {
+  run_sessions(state, scene_file, std::nullopt, true);
+}
+BENCHMARK_CAPTURE(BM_SceneCycleRecorded, cbd, std::string("config/scenes/cbd.toml"))
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+void BM_CbdStateHash(benchmark::State& state) {
+  run_sessions(state, "config/scenes/cbd.toml", std::nullopt, false, Timed::state_hash);
+}
+void BM_CbdRecordPush(benchmark::State& state) {
+  run_sessions(state, "config/scenes/cbd.toml", std::nullopt, true, Timed::record_push);
+}
+BENCHMARK(BM_CbdRecordPush)->UseManualTime()->Iterations(kCbdIterations)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CbdStateHash)->UseManualTime()->Iterations(kCbdIterations)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_SceneCycle, liver, std::string("config/scenes/liver.toml"))
     ->UseManualTime()
     ->Iterations(3 * 16'000)
