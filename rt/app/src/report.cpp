@@ -325,6 +325,13 @@ nlohmann::json report_json(const RunResult& r) {
       {"models", models_json(r)},
       {"model_step_errors", r.app.model_step_errors},
       {"log_records_dropped", r.log_records_dropped},
+      {"recording", r.recording_file.empty()
+                        ? nlohmann::json(nullptr)
+                        : nlohmann::json{{"file", r.recording_file},
+                                         {"cycles", r.recorded_cycles},
+                                         {"bytes", r.recording_bytes},
+                                         {"dropped_cycles", r.recording_dropped_cycles},
+                                         {"error", r.recording_error}}},
       {"can", can_json(r)},
       {"usb", usb_json(r)},
   };

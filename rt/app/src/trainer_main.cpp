@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include <CLI/CLI.hpp>
+#include <unistd.h>
 
 #include "trainer/app/report.hpp"
 #include "trainer/app/rt_self_check.hpp"
@@ -87,6 +88,12 @@ int main(int argc, char** argv) {
           ->check(CLI::ExistingFile)
           ->excludes(scene_opt)
           ->excludes(record_opt);
+  bool no_record = false;
+  auto* no_record_opt = cli.add_flag(
+      "--no-record", no_record,
+      "With --report-dir: do not record the session (by default it is recorded next to its "
+      "report, DIR/<scene>-<UTC start time>.mcap)");
+  no_record_opt->excludes(record_opt);
   std::string device_file;
   auto* device_opt =
       cli.add_option("--device", device_file,
@@ -214,11 +221,38 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
+  // The appliance (--report-dir) records every session next to its report: recorded under a
+  // temporary name, renamed to the report's name once the scene's name is known.
+  std::filesystem::path pending_recording;
+  if (!report_dir.empty() && !*record_opt && !no_record) {
+    pending_recording = std::filesystem::path(report_dir) /
+                        (".recording-" + std::to_string(::getpid()) + ".mcap");
+    options.record_file = pending_recording;
+  }
   const std::time_t started = std::time(nullptr);
   auto result = trainer::app::run_trainer(options);
   if (!result) {
+    if (!pending_recording.empty()) {
+      std::error_code ignored;
+      std::filesystem::remove(pending_recording, ignored);
+    }
     std::cerr << "trainer: " << result.error().message << "\n";
     return 1;
+  }
+  if (!report_dir.empty()) {
+    report_file = trainer_report_path(report_dir, result->scene_name, started).string();
+  }
+  if (!pending_recording.empty()) {
+    std::filesystem::path named = report_file;
+    named.replace_extension(".mcap");
+    std::error_code error;
+    std::filesystem::rename(pending_recording, named, error);
+    if (error) {
+      std::cerr << "trainer: cannot rename " << pending_recording.string() << " to "
+                << named.string() << ": " << error.message() << "\n";
+    } else {
+      result->recording_file = named.string();
+    }
   }
   std::cout << trainer::app::report_summary(*result);
   if (!result->recording_file.empty()) {
@@ -227,9 +261,6 @@ int main(int argc, char** argv) {
               << result->recording_dropped_cycles << " dropped (ring full)";
     if (!result->recording_error.empty()) std::cout << ", stopped: " << result->recording_error;
     std::cout << "\n";
-  }
-  if (!report_dir.empty()) {
-    report_file = trainer_report_path(report_dir, result->scene_name, started).string();
   }
   if (!report_file.empty()) {
     std::ofstream out(report_file);
