@@ -270,7 +270,10 @@ core::Expected<ReplayResult> replay_recording(
   result.complete = scanned->session_end.has_value();
   if (scanned->session_end)
     result.dropped_cycles = number_or_zero(value_or(*scanned->session_end, "cycles_dropped"));
-  if (!scanned->mcap.damage.empty()) result.damage = path.string() + ": " + scanned->mcap.damage;
+  if (!scanned->mcap.damage.empty()) {
+    result.damage = path.string() + ": " + scanned->mcap.damage + " (cycles from " +
+                    std::to_string(expected_cycle) + " on are not in the file)";
+  }
   if (!gap.empty()) result.damage = path.string() + ": " + gap;
   result.identical = !result.first_difference_cycle && result.damage.empty();
   return result;
