@@ -84,7 +84,8 @@ int main(int argc, char** argv) {
       cli.add_option("--replay", replay_file,
                      "Rerun a recording's cycles in simulated time on its recorded inputs and "
                      "compare every output and state hash (exit 0 identical, 3 a difference, "
-                     "4 identical up to damage or a gap in the file)")
+                     "4 identical up to damage or a gap in the file); --report FILE writes the "
+                     "result as JSON")
           ->check(CLI::ExistingFile)
           ->excludes(scene_opt)
           ->excludes(record_opt);
@@ -167,6 +168,27 @@ int main(int argc, char** argv) {
     }
     std::cout << "replay of " << replay_file << " (scene " << replayed->scene_name
               << "): " << trainer::app::replay_summary(*replayed) << "\n";
+    if (!report_file.empty()) {
+      nlohmann::json report{
+          {"replay", replay_file},
+          {"scene", replayed->scene_name},
+          {"cycles_replayed", replayed->cycles_replayed},
+          {"identical", replayed->identical},
+          {"first_difference_cycle", replayed->first_difference_cycle
+                                         ? nlohmann::json(*replayed->first_difference_cycle)
+                                         : nlohmann::json(nullptr)},
+          {"difference", replayed->difference},
+          {"damage", replayed->damage},
+          {"complete", replayed->complete},
+          {"dropped_cycles", replayed->dropped_cycles},
+          {"summary", trainer::app::replay_summary(*replayed)}};
+      std::ofstream out(report_file);
+      out << report.dump(2) << "\n";
+      if (!out) {
+        std::cerr << "trainer: cannot write report '" << report_file << "'\n";
+        return 1;
+      }
+    }
     if (replayed->first_difference_cycle) return 3;
     return replayed->identical ? 0 : 4;
   }

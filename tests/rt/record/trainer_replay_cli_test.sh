@@ -2,7 +2,8 @@
 # trainer --record/--replay as a user runs them (docs/recording.md): a session run with
 # --report-dir is recorded next to its report and named like it; --replay of it exits 0 with
 # the all-identical line; a truncated copy replays up to the damage (exit 4, the byte named);
-# a file that is not a recording is refused (exit 1); --no-record records nothing.
+# a file that is not a recording is refused (exit 1); --no-record records nothing; --replay
+# --report FILE writes the result as JSON.
 # Usage: trainer_replay_cli_test.sh TRAINER SOURCE_DIR
 set -eu
 trainer=$1
@@ -19,7 +20,10 @@ recording="${report%.json}.mcap"
 grep -q "\"file\": \"$recording\"" "$report" || fail "the report does not name $recording"
 ls "$work/reports" | grep -q '^\.recording' && fail "temporary recording left behind"
 
-"$trainer" --replay "$recording" >"$work/replay.txt" 2>&1 || fail "replay: $(cat "$work/replay.txt")"
+"$trainer" --replay "$recording" --report "$work/replay.json" >"$work/replay.txt" 2>&1 ||
+  fail "replay: $(cat "$work/replay.txt")"
+grep -q '"identical": true' "$work/replay.json" || fail "replay report: $(cat "$work/replay.json")"
+grep -q '"cycles_replayed": 3000' "$work/replay.json" || fail "replay report cycles"
 grep -q "(scene wall): 3000 cycles, all outputs and state hashes identical$" "$work/replay.txt" ||
   fail "replay said: $(cat "$work/replay.txt")"
 
