@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <string>
+#include <thread>
 
 namespace trainer::app {
 
@@ -26,7 +27,11 @@ HalBinding HalTaps::binding() noexcept {
 void HalTaps::push_open() noexcept {
   if (!open_) return;
   open_ = false;
-  if (ring_ != nullptr && ring_->push(pending_)) ++pushed_;
+  if (ring_ == nullptr) return;
+  if (wait_when_full_) {
+    while (ring_->full()) std::this_thread::yield();  // simulated time only (set_wait_when_full)
+  }
+  if (ring_->push(pending_)) ++pushed_;
 }
 
 void HalTaps::begin_cycle(const loop::CycleTiming& timing) noexcept {

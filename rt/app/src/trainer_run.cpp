@@ -29,6 +29,7 @@ namespace trainer::app {
 namespace {
 
 constexpr std::int64_t kSupervisorPeriodNs = 33'000'000;  // ~30 Hz telemetry / log drain
+constexpr std::int64_t kRecordingDrainPeriodNs = 2'000'000;  // simulated time, recording
 constexpr double kScriptTailS = 0.5;  // keep running briefly after the script's last keyframe
 
 // The motion backend: the device itself, or the motion half of a composite (a device file
@@ -196,6 +197,7 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
     if (!recorder) return fail(std::move(recorder).error());
     setup.recorder = std::move(*recorder);
     setup.taps->set_ring(&setup.recorder->ring());
+    setup.taps->set_wait_when_full(options.time_source == TimeSource::simulated);
     setup.app->set_recorder(setup.taps.get());
   }
   // The trainee script plays on the simulated bench only; on hardware a person moves the
@@ -272,21 +274,35 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
   });
   if (!thread) return std::move(thread).error();
   ServiceSupervision service(options.arm, scene.name, scene.loop.period_ns);
+  // A recording in simulated time: the cycle thread waits for the writer when the ring is
+  // full (HalTaps::set_wait_when_full), so drain often.
+  const std::int64_t supervisor_period_ns =
+      setup.recorder && options.time_source == TimeSource::simulated ? kRecordingDrainPeriodNs
+                                                                     : kSupervisorPeriodNs;
+  const auto steady_ns = [] {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  };
+  std::int64_t supervised_ns = 0;
   while (!finished.load(std::memory_order_acquire)) {
-    if (signals.wait_for(kSupervisorPeriodNs) != 0) {
+    if (signals.wait_for(supervisor_period_ns) != 0) {
       result.stopped_by_signal = true;
       stop.store(true, std::memory_order_release);
     }
-    drain_log(*setup.log, options);
     if (setup.recorder) setup.recorder->drain();
+    // Log, telemetry and service supervision at ~30 Hz whatever the recording's drain rate.
+    if (supervisor_period_ns < kSupervisorPeriodNs && !finished.load(std::memory_order_acquire) &&
+        steady_ns() - supervised_ns < kSupervisorPeriodNs) {
+      continue;
+    }
+    supervised_ns = steady_ns();
+    drain_log(*setup.log, options);
     if (setup.telemetry->update()) {
       service.observe(setup.telemetry->latest());
       if (options.on_telemetry) options.on_telemetry(setup.telemetry->latest());
     }
-    service.tick(finished.load(std::memory_order_acquire),
-                 std::chrono::duration_cast<std::chrono::nanoseconds>(
-                     std::chrono::steady_clock::now().time_since_epoch())
-                     .count());
+    service.tick(finished.load(std::memory_order_acquire), supervised_ns);
   }
   service.stopping(result.stopped_by_signal);
   thread->join();

@@ -36,6 +36,11 @@ class HalTaps final : public hal::EncoderInterface,
 
   // Setup path: where finished records go (null: nowhere).
   void set_ring(RecordRing* ring) noexcept { ring_ = ring; }
+  // Setup path, simulated time only (no RT: offline runs and tests, where the cycle runs as
+  // fast as the CPU allows and would outrun the writer): a full ring makes the cycle thread
+  // yield until the writer has made room, so the recording is complete. In real time the taps
+  // never wait: a full ring drops the record and counts it.
+  void set_wait_when_full(bool wait) noexcept { wait_when_full_ = wait; }
   // The binding the haptic app runs on: the taps in place of each interface `inner` has.
   HalBinding binding() noexcept;
 
@@ -71,6 +76,7 @@ class HalTaps final : public hal::EncoderInterface,
   RecordRing* ring_;
   record::CycleRecord pending_{};
   bool open_ = false;
+  bool wait_when_full_ = false;
   std::uint64_t pushed_ = 0;
 };
 

@@ -34,6 +34,12 @@ class SpscRing {
     return true;
   }
 
+  // Producer: true when a push now would be refused.
+  bool full() const noexcept {
+    return head_.load(std::memory_order_relaxed) - tail_.load(std::memory_order_acquire) ==
+           Capacity;
+  }
+
   // Consumer: pops one value; false when empty.
   bool pop(T& out) noexcept {
     const std::size_t tail = tail_.load(std::memory_order_relaxed);
