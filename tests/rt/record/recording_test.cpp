@@ -13,8 +13,11 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <cstring>
+#include <thread>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -347,6 +350,42 @@ TEST(HalTaps, RecordWhatPassesAndCountAFullRing) {
   EXPECT_EQ(first.commands[0].effort, 0.25F);
   EXPECT_EQ(first.actuator_write_rc, 1U);  // error, as the HAL returned it
   EXPECT_EQ(first.status_rc, record::kNotCalled);
+}
+
+TEST(HalTaps, InSimulatedTimeAFullRingWaitsForTheWriter) {
+  OneChannel hal;
+  auto ring = std::make_unique<RecordRing>();
+  auto taps = HalTaps::create(HalBinding{&hal, &hal, nullptr, nullptr}, ring.get());
+  ASSERT_TRUE(taps);
+  HalTaps& tap = **taps;
+  tap.set_wait_when_full(true);
+  const std::uint64_t cycles = 3 * kRecordRingCapacity;
+  std::atomic<bool> done{false};
+  std::thread cycle_thread([&] {
+    std::array<hal::EncoderSample, 1> samples{};
+    for (std::uint64_t k = 0; k < cycles; ++k) {
+      tap.begin_cycle(loop::CycleTiming{k, 0, 0, 1e-3, 0});
+      (void)tap.binding().encoders->read_encoders(samples);
+    }
+    tap.finish();
+    done.store(true, std::memory_order_release);
+  });
+  // A slow writer: the ring fills up many times over.
+  std::uint64_t expected = 0;
+  record::CycleRecord r{};
+  for (;;) {
+    const bool finished = done.load(std::memory_order_acquire);
+    if (ring->pop(r)) {
+      ASSERT_EQ(r.cycle_index, expected);
+      ++expected;
+      if (expected % 512 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    } else if (finished) {
+      break;
+    }
+  }
+  cycle_thread.join();
+  EXPECT_EQ(expected, cycles);
+  EXPECT_EQ(ring->dropped(), 0U);
 }
 
 }  // namespace
