@@ -39,7 +39,19 @@ namespace {
 
 namespace fs = std::filesystem;
 const fs::path kRepo{TRAINER_SOURCE_DIR};
+// The right forceps first touch the duct at cycle 2990 of the scripted insertion. Sanitizer
+// builds (the cbd cycle is ~20x slower under ASan) run 400 cycles, before any contact: the
+// changed input then shows in the state hash instead of a command, and the file-damage tests
+// (one chunk only) are left to record_test, which covers the reader under the sanitizers.
+#if defined(TRAINER_SANITIZER_BUILD)
+constexpr std::uint64_t kCycles = 400;
+constexpr std::uint64_t kChanged = 300;
+constexpr bool kFullSession = false;
+#else
 constexpr std::uint64_t kCycles = 4000;
+constexpr std::uint64_t kChanged = 3000;
+constexpr bool kFullSession = true;
+#endif
 
 std::string file_text(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -191,7 +203,9 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   EXPECT_TRUE(replay->identical) << replay_summary(*replay);
   EXPECT_EQ(replay->cycles_replayed, kCycles);
   EXPECT_TRUE(replay->complete);
-  EXPECT_EQ(replay_summary(*replay), "4000 cycles, all outputs and state hashes identical");
+  EXPECT_EQ(replay_summary(*replay),
+            std::to_string(kCycles) + " cycles, all outputs and state hashes identical");
+  if (!kFullSession) return;
 
   // The recording holds what the session did: contacts with the duct, distinct state hashes.
   std::uint64_t contact_cycles = 0;
@@ -209,9 +223,9 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
 }
 
 TEST_F(Recording, OneChangedEncoderInputIsReportedAtItsCycle) {
-  // The right forceps press the duct from cycle ~1000 on; its insertion joint (device
-  // instrument 1, joint 2: channel 7) moved by 0.1 mm at cycle 3000 changes that cycle.
-  constexpr std::uint64_t kChanged = 3000;
+  // The right forceps press the duct from cycle 2990 on; its insertion joint (device
+  // instrument 1, joint 2: channel 7) moved by 0.1 mm at cycle 3000 changes that cycle's
+  // command.
   const fs::path changed = temp_path("changed");
   rewrite(cbd_recording(), changed, [](record::CycleRecord& r) {
     if (r.cycle_index == kChanged) r.encoders[7].position += 1e-4F;
@@ -223,13 +237,20 @@ TEST_F(Recording, OneChangedEncoderInputIsReportedAtItsCycle) {
   ASSERT_TRUE(replay->first_difference_cycle.has_value()) << replay_summary(*replay);
   EXPECT_EQ(*replay->first_difference_cycle, kChanged) << replay->difference;
   EXPECT_EQ(replay->cycles_replayed, kChanged);
+  if (!kFullSession) {
+    EXPECT_EQ(replay->difference.rfind("state_hash: ", 0), 0U) << replay->difference;
+    return;
+  }
   // The force on the duct changed: the command of one of the right instrument's channels.
   EXPECT_EQ(replay->difference.rfind("command[channel ", 0), 0U) << replay->difference;
   EXPECT_NE(replay_summary(*replay).find("replay differs at cycle 3000: command[channel "),
             std::string::npos);
 }
 
-TEST_F(Recording, TruncatedAndCorruptFilesReplayUpToTheDamage) {
+// Not the fixture: the sanitizer build skips them before building the images.
+TEST(RecordingDamage, TruncatedAndCorruptFilesReplayUpToTheDamage) {
+  if (!kFullSession) GTEST_SKIP() << "one chunk in the sanitizer build's session";
+  ASSERT_EQ(CbdCopy::get().error, "") << "cbd copy and images";
   const auto bytes = *record::mcap::read_file(cbd_recording());
   const fs::path cut = temp_path("cut");
   {
@@ -262,7 +283,9 @@ TEST_F(Recording, TruncatedAndCorruptFilesReplayUpToTheDamage) {
   EXPECT_NE(replay_summary(*corrupt).find("identical up to the damage"), std::string::npos);
 }
 
-TEST_F(Recording, GapAndChangedImageAreRefused) {
+TEST(RecordingDamage, GapAndChangedImageAreRefused) {
+  if (!kFullSession) GTEST_SKIP() << "release only (CI time); record_test covers the reader";
+  ASSERT_EQ(CbdCopy::get().error, "") << "cbd copy and images";
   const fs::path gap = temp_path("gap");
   rewrite(cbd_recording(), gap, [](record::CycleRecord& r) { return r.cycle_index != 1234; });
   auto gapped = replay_recording(gap);
@@ -287,14 +310,14 @@ TEST_F(Recording, RealClockRunReplaysBitExactly) {
   RunOptions options = cbd_options(file);
   options.time_source = TimeSource::real;
   options.apply_rt_settings = false;
-  options.cycles = 500;
+  options.cycles = kFullSession ? 500 : 200;
   auto result = run_trainer(options);
   ASSERT_TRUE(result) << result.error().message;
-  EXPECT_EQ(result->recorded_cycles, 500U);
+  EXPECT_EQ(result->recorded_cycles, *options.cycles);
   auto replay = replay_recording(file);
   ASSERT_TRUE(replay) << replay.error().message;
   EXPECT_TRUE(replay->identical) << replay_summary(*replay);
-  EXPECT_EQ(replay->cycles_replayed, 500U);
+  EXPECT_EQ(replay->cycles_replayed, *options.cycles);
   // Measured dt: the wake-to-wake intervals were recorded, not the nominal period.
   bool measured_dt = false;
   auto scan = record::scan_recording(file, [&](const record::CycleRecord& r) {
