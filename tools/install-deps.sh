@@ -10,7 +10,8 @@ packages=(
   libspectra-dev         # sparse eigen-solver (modal analysis)
   libsuitesparse-dev     # CHOLMOD sparse Cholesky (precompute)
   libopenblas0-pthread   # optimised BLAS behind CHOLMOD: tensor precompute 1.7x faster than reference BLAS
-  libxxhash-dev          # xxHash64 integrity check of model images
+  libxxhash-dev          # xxHash64 integrity check of model images (and the recording's state hash)
+  libzstd-dev zlib1g-dev # session recordings: zstd chunk compression, CRC-32 (rt/record)
   libusb-1.0-0-dev       # USB device backend
   libgpiod-dev           # GPIO lines backend (libgpiod v1 API on Debian 12)
   libsystemd-dev         # sd_notify: READY/WATCHDOG/STOPPING of the trainer service (rt/appliance)
