@@ -86,8 +86,8 @@ class SceneSession {
     auto arena = core::Arena::create(scene_.memory.arena_bytes);
     if (!arena) return std::move(arena).error();
     arena_.emplace(std::move(*arena));
-    app::HalBinding binding{device_->encoders(), device_->actuators(),
-                            device_->digital_inputs(), device_->digital_outputs()};
+    app::HalBinding binding{device_->encoders(), device_->actuators(), device_->digital_inputs(),
+                            device_->digital_outputs()};
     if (record) {
       ring_ = std::make_unique<app::RecordRing>();
       auto taps = app::HalTaps::create(binding, ring_.get());
@@ -208,8 +208,14 @@ void BM_CbdStateHash(benchmark::State& state) {
 void BM_CbdRecordPush(benchmark::State& state) {
   run_sessions(state, "config/scenes/cbd.toml", std::nullopt, true, Timed::record_push);
 }
-BENCHMARK(BM_CbdRecordPush)->UseManualTime()->Iterations(kCbdIterations)->Unit(benchmark::kMicrosecond);
-BENCHMARK(BM_CbdStateHash)->UseManualTime()->Iterations(kCbdIterations)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CbdRecordPush)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CbdStateHash)
+    ->UseManualTime()
+    ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_SceneCycle, liver, std::string("config/scenes/liver.toml"))
     ->UseManualTime()
     ->Iterations(3 * 16'000)

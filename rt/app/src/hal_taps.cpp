@@ -50,14 +50,17 @@ void HalTaps::begin_cycle(const loop::CycleTiming& timing) noexcept {
   open_ = true;
 }
 
-void HalTaps::finish() noexcept { push_open(); }
+void HalTaps::finish() noexcept {
+  push_open();
+}
 
 hal::ReturnCode HalTaps::read_encoders(std::span<hal::EncoderSample> out) noexcept {
   const hal::ReturnCode rc = inner_.encoders->read_encoders(out);
   if (open_) {
     pending_.encoder_rc = static_cast<std::uint8_t>(rc);
     const std::size_t n = std::min(out.size(), record::kMaxRecordChannels);
-    pending_.channel_count = static_cast<std::uint16_t>(std::max<std::size_t>(pending_.channel_count, n));
+    pending_.channel_count =
+        static_cast<std::uint16_t>(std::max<std::size_t>(pending_.channel_count, n));
     for (std::size_t c = 0; c < n; ++c) {
       pending_.encoders[c].counts = out[c].counts;
       pending_.encoders[c].position = out[c].position;
@@ -72,7 +75,8 @@ hal::ReturnCode HalTaps::read_actuator_status(std::span<hal::ActuatorStatus> out
   if (open_) {
     pending_.status_rc = static_cast<std::uint8_t>(rc);
     const std::size_t n = std::min(out.size(), record::kMaxRecordChannels);
-    pending_.channel_count = static_cast<std::uint16_t>(std::max<std::size_t>(pending_.channel_count, n));
+    pending_.channel_count =
+        static_cast<std::uint16_t>(std::max<std::size_t>(pending_.channel_count, n));
     for (std::size_t c = 0; c < n; ++c) {
       pending_.status[c].applied_effort = out[c].applied_effort;
       pending_.status[c].enabled = out[c].enabled ? 1 : 0;

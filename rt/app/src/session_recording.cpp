@@ -173,8 +173,8 @@ core::Expected<config::SceneConfig> recorded_scene(const std::filesystem::path& 
   config::LoadOptions options;
   options.require_script_file = false;
   options.device_file = device_file;
-  auto scene = config::load_scene_text(value_or(info, "scene_text"),
-                                       value_or(info, "scene_file"), options);
+  auto scene =
+      config::load_scene_text(value_or(info, "scene_text"), value_or(info, "scene_file"), options);
   if (!scene) return core::make_error(where + "the recorded scene: " + scene.error().message);
   const std::string period = value_or(info, "period_ns");
   if (period.empty()) return core::make_error(where + "the session metadata has no period_ns");
@@ -256,8 +256,7 @@ core::Expected<ReplayResult> replay_recording(
     if (recorded.overrun_fault_streak != 0) haptic.on_overrun_fault(recorded.overrun_fault_streak);
     while (log->pop(discarded)) {
     }
-    const std::string difference =
-        record::first_output_difference(recorded, (*taps)->pending());
+    const std::string difference = record::first_output_difference(recorded, (*taps)->pending());
     if (!difference.empty()) {
       result.first_difference_cycle = recorded.cycle_index;
       result.difference = difference;
@@ -282,16 +281,15 @@ core::Expected<ReplayResult> replay_recording(
 std::string replay_summary(const ReplayResult& result) {
   std::ostringstream out;
   if (result.first_difference_cycle) {
-    out << "replay differs at cycle " << *result.first_difference_cycle << ": "
-        << result.difference << " (" << result.cycles_replayed << " cycles identical before it)";
+    out << "replay differs at cycle " << *result.first_difference_cycle << ": " << result.difference
+        << " (" << result.cycles_replayed << " cycles identical before it)";
   } else if (!result.damage.empty()) {
     out << result.cycles_replayed
         << " cycles, all outputs and state hashes identical up to the damage: " << result.damage;
   } else {
     out << result.cycles_replayed << " cycles, all outputs and state hashes identical";
   }
-  if (!result.complete && result.damage.empty())
-    out << " (the session did not close the file)";
+  if (!result.complete && result.damage.empty()) out << " (the session did not close the file)";
   return out.str();
 }
 

@@ -21,19 +21,18 @@ void hash_value(XXH3_state_t& state, const T& value) noexcept {
   (void)XXH3_64bits_update(&state, &value, sizeof value);
 }
 
-std::array<float, 3> to_array(const Eigen::Vector3f& v) noexcept { return {v.x(), v.y(), v.z()}; }
+std::array<float, 3> to_array(const Eigen::Vector3f& v) noexcept {
+  return {v.x(), v.y(), v.z()};
+}
 
 // Where a point force acts on the instrument (forceps_catheter.hpp ToolForce).
 Eigen::Vector3f point_of(const kinematics::InstrumentPose& pose,
                          const model::ToolForce& force) noexcept {
   switch (force.segment) {
-    case model::ToolSegment::jaw0:
-      return pose.hinge_m + force.along_m * pose.jaw_directions[0];
-    case model::ToolSegment::jaw1:
-      return pose.hinge_m + force.along_m * pose.jaw_directions[1];
+    case model::ToolSegment::jaw0: return pose.hinge_m + force.along_m * pose.jaw_directions[0];
+    case model::ToolSegment::jaw1: return pose.hinge_m + force.along_m * pose.jaw_directions[1];
     case model::ToolSegment::shaft:
-    default:
-      return pose.shaft_start_m + force.along_m * pose.direction;
+    default: return pose.shaft_start_m + force.along_m * pose.direction;
   }
 }
 

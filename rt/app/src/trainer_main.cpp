@@ -1,5 +1,7 @@
 // `trainer`: the appliance's main program. Loads a scene, runs the haptic loop on the chosen
 // HAL backend, prints a summary and optionally writes the JSON report (docs/report.md).
+#include <unistd.h>
+
 #include <cstdint>
 #include <cstdio>
 #include <ctime>
@@ -8,7 +10,6 @@
 #include <iostream>
 
 #include <CLI/CLI.hpp>
-#include <unistd.h>
 
 #include "trainer/app/report.hpp"
 #include "trainer/app/rt_self_check.hpp"
@@ -247,8 +248,8 @@ int main(int argc, char** argv) {
   // temporary name, renamed to the report's name once the scene's name is known.
   std::filesystem::path pending_recording;
   if (!report_dir.empty() && !*record_opt && !no_record) {
-    pending_recording = std::filesystem::path(report_dir) /
-                        (".recording-" + std::to_string(::getpid()) + ".mcap");
+    pending_recording =
+        std::filesystem::path(report_dir) / (".recording-" + std::to_string(::getpid()) + ".mcap");
     options.record_file = pending_recording;
   }
   const std::time_t started = std::time(nullptr);

@@ -28,7 +28,7 @@ namespace trainer::app {
 
 namespace {
 
-constexpr std::int64_t kSupervisorPeriodNs = 33'000'000;  // ~30 Hz telemetry / log drain
+constexpr std::int64_t kSupervisorPeriodNs = 33'000'000;     // ~30 Hz telemetry / log drain
 constexpr std::int64_t kRecordingDrainPeriodNs = 2'000'000;  // simulated time, recording
 constexpr double kScriptTailS = 0.5;  // keep running briefly after the script's last keyframe
 
@@ -99,7 +99,7 @@ struct RunSetup {
   std::unique_ptr<core::LogRing> log = std::make_unique<core::LogRing>();
   std::unique_ptr<core::TripleBuffer<TelemetrySnapshot>> telemetry =
       std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
-  std::unique_ptr<HalTaps> taps;                // --record: before the app that uses them
+  std::unique_ptr<HalTaps> taps;  // --record: before the app that uses them
   std::unique_ptr<SessionRecorder> recorder;
   std::unique_ptr<HapticApp> app;
   std::uint64_t cycles = 0;

@@ -9,7 +9,9 @@
 namespace trainer::record {
 namespace {
 
-std::string text_of(std::uint64_t v) { return std::to_string(v); }
+std::string text_of(std::uint64_t v) {
+  return std::to_string(v);
+}
 std::string text_of(float v) {
   std::uint32_t bits = 0;
   std::memcpy(&bits, &v, sizeof bits);
@@ -23,7 +25,9 @@ std::string hex_of(std::uint64_t v) {
   return out;
 }
 
-bool same_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool same_bits(float a, float b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
 
 struct Differ {
   std::string found;

@@ -31,16 +31,24 @@ enum Op : std::uint8_t {
 };
 
 // Little-endian appenders (the host is little-endian: x86-64 and the ARM appliances).
-void put_u8(std::vector<std::uint8_t>& out, std::uint8_t v) { out.push_back(v); }
+void put_u8(std::vector<std::uint8_t>& out, std::uint8_t v) {
+  out.push_back(v);
+}
 template <class T>
 void put_le(std::vector<std::uint8_t>& out, T v) {
   for (std::size_t k = 0; k < sizeof(T); ++k) {
     out.push_back(static_cast<std::uint8_t>(static_cast<std::uint64_t>(v) >> (8 * k)));
   }
 }
-void put_u16(std::vector<std::uint8_t>& out, std::uint16_t v) { put_le(out, v); }
-void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) { put_le(out, v); }
-void put_u64(std::vector<std::uint8_t>& out, std::uint64_t v) { put_le(out, v); }
+void put_u16(std::vector<std::uint8_t>& out, std::uint16_t v) {
+  put_le(out, v);
+}
+void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) {
+  put_le(out, v);
+}
+void put_u64(std::vector<std::uint8_t>& out, std::uint64_t v) {
+  put_le(out, v);
+}
 void put_bytes(std::vector<std::uint8_t>& out, std::span<const std::uint8_t> bytes) {
   out.insert(out.end(), bytes.begin(), bytes.end());
 }
@@ -258,8 +266,8 @@ core::Expected<void> Writer::flush_chunk() {
   put_bytes(content, payload);
   std::vector<std::uint8_t> record;
   put_record(record, kChunk, content);
-  ChunkIndexEntry index{chunk_start_, chunk_end_, offset_, record.size(), {}, 0, compression,
-                        payload.size(), chunk_.size()};
+  ChunkIndexEntry index{chunk_start_, chunk_end_,     offset_,      record.size(), {}, 0,
+                        compression,  payload.size(), chunk_.size()};
   // Message Index records follow the chunk, one per channel with messages in it.
   std::vector<std::uint8_t> indexes;
   for (const auto& [channel, entries] : chunk_messages_) {
@@ -373,7 +381,8 @@ core::Expected<void> Writer::close() {
   closed_ = true;
   const bool closed_ok = std::fclose(file_) == 0;
   file_ = nullptr;
-  if (!closed_ok) return core::make_error(path_.string() + ": close failed: " + std::strerror(errno));
+  if (!closed_ok)
+    return core::make_error(path_.string() + ": close failed: " + std::strerror(errno));
   return {};
 }
 
@@ -487,11 +496,12 @@ struct Scanner {
       const std::uint8_t op = bytes[at];
       std::uint64_t length = 0;
       for (int k = 0; k < 8; ++k)
-        length |= static_cast<std::uint64_t>(bytes[at + 1 + static_cast<std::size_t>(k)]) << (8 * k);
+        length |= static_cast<std::uint64_t>(bytes[at + 1 + static_cast<std::size_t>(k)])
+                  << (8 * k);
       if (length > bytes.size() - at - 9) {
         return fail(base + at, std::string(in_chunk ? "chunk" : "file") +
-                                   " ends inside a record (opcode " + std::to_string(op) +
-                                   ", " + std::to_string(length) + " bytes; truncated)");
+                                   " ends inside a record (opcode " + std::to_string(op) + ", " +
+                                   std::to_string(length) + " bytes; truncated)");
       }
       if (!record(op, bytes.subspan(at + 9, static_cast<std::size_t>(length)),
                   in_chunk ? base : base + at, in_chunk))
@@ -518,7 +528,8 @@ core::Expected<ScanResult> scan(std::span<const std::uint8_t> file, Visitor& vis
     result.damage_offset = file.size();
   }
   if (whole && scanner.data_end) {
-    result.complete = file.size() >= 16 && std::memcmp(file.data() + file.size() - 8, kMagic, 8) == 0;
+    result.complete =
+        file.size() >= 16 && std::memcmp(file.data() + file.size() - 8, kMagic, 8) == 0;
     if (!result.complete) {
       result.damage = "byte " + std::to_string(file.size()) +
                       ": the summary or footer after Data End is cut off";

@@ -22,15 +22,14 @@ core::Expected<void> RecordingWriter::open(const std::filesystem::path& path,
   options.compression = compression;
   if (auto opened = writer_.open(path, options); !opened) return opened;
   const std::string schema = kCycleSchemaText;
-  if (auto added = writer_.add_schema(
-          1, "trainer.CycleRecord", kCycleEncoding,
-          {reinterpret_cast<const std::uint8_t*>(schema.data()), schema.size()});
+  if (auto added =
+          writer_.add_schema(1, "trainer.CycleRecord", kCycleEncoding,
+                             {reinterpret_cast<const std::uint8_t*>(schema.data()), schema.size()});
       !added)
     return added;
-  if (auto added = writer_.add_channel(
-          kCycleChannel, 1, kCycleTopic, kCycleEncoding,
-          {{"layout", std::to_string(kCycleRecordLayout)},
-           {"record_bytes", std::to_string(sizeof(CycleRecord))}});
+  if (auto added = writer_.add_channel(kCycleChannel, 1, kCycleTopic, kCycleEncoding,
+                                       {{"layout", std::to_string(kCycleRecordLayout)},
+                                        {"record_bytes", std::to_string(sizeof(CycleRecord))}});
       !added)
     return added;
   return writer_.add_metadata("session", session);
@@ -38,17 +37,17 @@ core::Expected<void> RecordingWriter::open(const std::filesystem::path& path,
 
 core::Expected<void> RecordingWriter::add(const CycleRecord& record) {
   ++records_;
-  return writer_.add_message(
-      kCycleChannel, static_cast<std::uint32_t>(record.cycle_index),
-      static_cast<std::uint64_t>(record.wake_ns), static_cast<std::uint64_t>(record.wake_ns),
-      {reinterpret_cast<const std::uint8_t*>(&record), sizeof record});
+  return writer_.add_message(kCycleChannel, static_cast<std::uint32_t>(record.cycle_index),
+                             static_cast<std::uint64_t>(record.wake_ns),
+                             static_cast<std::uint64_t>(record.wake_ns),
+                             {reinterpret_cast<const std::uint8_t*>(&record), sizeof record});
 }
 
 core::Expected<void> RecordingWriter::close(std::uint64_t dropped_cycles) {
   if (auto flushed = writer_.flush_chunk(); !flushed) return flushed;
-  if (auto added = writer_.add_metadata("session_end",
-                                        {{"cycles_recorded", std::to_string(records_)},
-                                         {"cycles_dropped", std::to_string(dropped_cycles)}});
+  if (auto added =
+          writer_.add_metadata("session_end", {{"cycles_recorded", std::to_string(records_)},
+                                               {"cycles_dropped", std::to_string(dropped_cycles)}});
       !added)
     return added;
   return writer_.close();
@@ -121,9 +120,9 @@ core::Expected<RecordingScan> scan_recording(
   if (!visitor.error().empty()) return core::make_error(path.string() + ": " + visitor.error());
   scan.mcap = *scanned;
   if (scan.session.empty() && scan.records == 0) {
-    return core::make_error(path.string() + ": no session metadata" +
-                            (scan.mcap.damage.empty() ? std::string()
-                                                      : " (" + scan.mcap.damage + ")"));
+    return core::make_error(
+        path.string() + ": no session metadata" +
+        (scan.mcap.damage.empty() ? std::string() : " (" + scan.mcap.damage + ")"));
   }
   return scan;
 }

@@ -17,11 +17,11 @@
 #include <chrono>
 #include <cstdint>
 #include <cstring>
-#include <thread>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "catheter_images.hpp"
@@ -94,10 +94,10 @@ class CbdCopy {
     write_text(dir / "models/duct.toml",
                replaced(file_text(kRepo / "config/models/duct.toml"),
                         "image = \"../../out/models/duct.img\"", "image = \"duct.img\""));
-    write_text(dir / "models/catheter_cbd.toml",
-               replaced(file_text(kRepo / "config/models/catheter_cbd.toml"),
-                        "image = \"../../out/models/catheter_cbd.img\"",
-                        "image = \"catheter_cbd.img\""));
+    write_text(
+        dir / "models/catheter_cbd.toml",
+        replaced(file_text(kRepo / "config/models/catheter_cbd.toml"),
+                 "image = \"../../out/models/catheter_cbd.img\"", "image = \"catheter_cbd.img\""));
     std::string scene_text = file_text(kRepo / "config/scenes/cbd.toml");
     scene_text = replaced(scene_text, "device = \"../devices/sim.toml\"",
                           "device = \"" + (kRepo / "config/devices/sim.toml").string() + "\"");

@@ -31,8 +31,8 @@ record::SessionInfo session_info(const config::SceneConfig& scene,
 
 class SessionRecorder {
  public:
-  static core::Expected<std::unique_ptr<SessionRecorder>> open(
-      const std::filesystem::path& path, const record::SessionInfo& session);
+  static core::Expected<std::unique_ptr<SessionRecorder>> open(const std::filesystem::path& path,
+                                                               const record::SessionInfo& session);
 
   RecordRing& ring() noexcept { return *ring_; }
   // Writes every record in the ring. The first write error stops the recording (the run goes

@@ -95,7 +95,7 @@ struct CycleRecord {
   std::array<RecordedEncoder, kMaxRecordChannels> encoders;  // input
   std::array<RecordedStatus, kMaxRecordChannels> status;     // input
   std::array<RecordedCommand, kMaxRecordChannels> commands;  // output (first write)
-  DerivedSample derived;                                      // output
+  DerivedSample derived;                                     // output
 };
 
 static_assert(std::is_trivially_copyable_v<CycleRecord>);

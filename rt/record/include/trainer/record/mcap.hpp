@@ -24,8 +24,8 @@ namespace trainer::record::mcap {
 enum class Compression : std::uint8_t { none, zstd };
 
 struct WriterOptions {
-  std::string profile;           // Header.profile ("" = none)
-  std::string library;           // Header.library
+  std::string profile;                 // Header.profile ("" = none)
+  std::string library;                 // Header.library
   std::size_t chunk_bytes = 1U << 19;  // uncompressed chunk payload before it is written
   Compression compression = Compression::zstd;
   int zstd_level = 3;
@@ -74,7 +74,7 @@ class Writer {
   std::filesystem::path path_;
   WriterOptions options_;
   std::uint64_t offset_ = 0;
-  std::vector<std::uint8_t> schema_records_, channel_records_;  // repeated in the summary
+  std::vector<std::uint8_t> schema_records_, channel_records_;           // repeated in the summary
   std::vector<std::pair<std::uint64_t, std::uint64_t>> metadata_index_;  // offset, length
   std::vector<std::string> metadata_names_;
   std::vector<ChunkIndexEntry> chunk_indexes_;
