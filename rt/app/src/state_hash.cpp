@@ -78,6 +78,36 @@ std::uint64_t HapticApp::state_hash() const noexcept {
   return XXH3_64bits_digest(&state);
 }
 
+// The scene index of the soft-tissue model (modal or tensor) with the largest total force this
+// cycle (tools and catheters on it), -1 when none was loaded. The stats keep each model's sum
+// of |total force| over its loaded cycles; the increase since the last record is this cycle's.
+std::int32_t HapticApp::largest_force_model() noexcept {
+  std::int32_t best = -1;
+  double best_force = 0.0;
+  std::size_t modal = 0;
+  std::size_t tensor = 0;
+  for (std::size_t m = 0; m < models_.info.size(); ++m) {
+    double sum = 0.0;
+    std::size_t slot = 0;
+    if (models_.info[m].kind == config::ModelKind::modal_shell && modal < kMaxSceneModels) {
+      slot = modal;
+      sum = stats_.modal_models[modal++].force_sum_n;
+    } else if (models_.info[m].kind == config::ModelKind::tet_tensor && tensor < kMaxSceneModels) {
+      slot = kMaxSceneModels + tensor;
+      sum = stats_.tensor_models[tensor++].force_sum_n;
+    } else {
+      continue;
+    }
+    const double force = sum - recorded_force_sums_[slot];
+    recorded_force_sums_[slot] = sum;
+    if (force > best_force) {
+      best_force = force;
+      best = static_cast<std::int32_t>(m);
+    }
+  }
+  return best;
+}
+
 void HapticApp::record_cycle() noexcept {
   record::CycleRecord& r = recorder_->pending();
   r.reset_requested = frame_.reset_requested ? 1 : 0;
@@ -86,7 +116,7 @@ void HapticApp::record_cycle() noexcept {
   record::DerivedSample& d = r.derived;
   d.time_ns = frame_.timing.wake_ns;
   d.instrument_count = static_cast<std::uint32_t>(frame_.instruments.size());
-  d.contact_model = -1;  // not tracked per model yet (docs/recording.md)
+  d.contact_model = largest_force_model();
   d.insertion_depth_m = std::numeric_limits<float>::quiet_NaN();
   for (std::size_t c = 0; c < models_.catheter_count; ++c) {
     if (models_.catheters[c].has_goal) {

@@ -209,16 +209,22 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
 
   // The recording holds what the session did: contacts with the duct, distinct state hashes.
   std::uint64_t contact_cycles = 0;
+  std::uint64_t duct_loaded_cycles = 0;
+  std::uint64_t other_model_cycles = 0;
   std::uint64_t hash_changes = 0;
   std::uint64_t previous_hash = 0;
   auto scan = record::scan_recording(file, [&](const record::CycleRecord& r) {
     if (r.derived.instruments[1].tissue_contact != 0) ++contact_cycles;
+    if (r.derived.contact_model == 0) ++duct_loaded_cycles;  // the duct is the scene's model 0
+    if (r.derived.contact_model > 0) ++other_model_cycles;   // the catheter is not tissue
     if (r.state_hash != previous_hash) ++hash_changes;
     previous_hash = r.state_hash;
     return true;
   });
   ASSERT_TRUE(scan);
   EXPECT_GT(contact_cycles, 100U);
+  EXPECT_GE(duct_loaded_cycles, contact_cycles);
+  EXPECT_EQ(other_model_cycles, 0U);
   EXPECT_GT(hash_changes, kCycles / 2);
 }
 

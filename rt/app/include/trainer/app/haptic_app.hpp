@@ -111,8 +111,12 @@ class HapticApp final : public loop::CycleTask {
   std::unique_ptr<HapticStages> stages_;
   StageRunner runner_{stage_clock_};
   HalTaps* recorder_ = nullptr;
+  // The models' force sums at the last recorded cycle (modal, then tensor, in scene order):
+  // their increase is this cycle's force on each model (the record's contact_model).
+  std::array<double, 2 * kMaxSceneModels> recorded_force_sums_{};
 
   void record_cycle() noexcept;
+  std::int32_t largest_force_model() noexcept;
 };
 
 }  // namespace trainer::app

@@ -59,8 +59,9 @@ struct DerivedInstrument {
 struct DerivedSample {
   std::int64_t time_ns;  // the cycle's wake time
   std::uint32_t instrument_count;
-  std::int32_t contact_model;  // scene model index holding the largest tissue force, -1 none
-  float insertion_depth_m;     // catheter tip past [model.insertion]'s entry; NaN without one
+  std::int32_t
+      contact_model;  // scene model index (modal/tensor) with the largest total force, -1 none
+  float insertion_depth_m;  // catheter tip past [model.insertion]'s entry; NaN without one
   std::uint32_t pad;
   std::array<DerivedInstrument, kMaxRecordInstruments> instruments;
 };
