@@ -307,8 +307,10 @@ core::Status SessionMetrics::add(const CycleSample& sample) noexcept {
       insertion.max_depth_time_ns = sample.time_ns;
     }
     insertion.present = true;
+    // Compared in the sample's float precision, as the cycle compares its depth with the
+    // target: a depth equal to the target as a float has reached it.
     if (insertion.target_depth_m && !insertion.target_reached &&
-        depth_m >= *insertion.target_depth_m) {
+        sample.insertion_depth_m >= static_cast<float>(*insertion.target_depth_m)) {
       insertion.target_reached = true;
       insertion.target_time_ns = sample.time_ns;
       const std::int64_t from_ns =
