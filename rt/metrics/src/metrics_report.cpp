@@ -1,6 +1,7 @@
 #include "trainer/metrics/metrics_report.hpp"
 
 #include <cstddef>
+#include <cstdio>
 
 namespace trainer::metrics {
 
@@ -101,6 +102,53 @@ nlohmann::json metrics_json(const SessionResult& r, const MetricsThresholds& thr
           {"worst_damage", worst},
           {"instruments", instruments},
           {"insertion", insertion}};
+}
+
+namespace {
+
+std::string formatted(const char* format, double a, double b = 0.0, double c = 0.0) {
+  char buffer[160];
+  std::snprintf(buffer, sizeof buffer, format, a, b, c);
+  return buffer;
+}
+
+}  // namespace
+
+std::string metrics_summary(const SessionResult& r, std::span<const std::string> instrument_names) {
+  std::string text = "metrics: ";
+  if (!r.task_started) {
+    text += "no motion";
+  } else {
+    text += formatted("task %.2f s", r.task_time_s);
+    if (r.task_completed && r.insertion.target_depth_m) {
+      text += formatted(" (insertion target %.1f mm reached)", *r.insertion.target_depth_m * 1e3);
+    }
+  }
+  text += formatted(", above safe force %.2f s", r.time_above_safe_s);
+  if (r.worst_damage.has_peak) {
+    const std::size_t i = r.worst_damage.peak_instrument;
+    text += formatted(", damage %.2f s, %.3f N·s, peak %.2f N", r.time_above_damage_s,
+                      r.damage_impulse_n_s, r.worst_damage.peak_force_n);
+    text += " (" + (i < instrument_names.size() ? instrument_names[i] : std::to_string(i)) + ")";
+  } else {
+    text += ", no damage";
+  }
+  if (r.insertion.present) {
+    text += formatted(", insertion depth %.1f mm", r.insertion.max_depth_m * 1e3);
+  }
+  if (r.refused_samples > 0) text += ", " + std::to_string(r.refused_samples) + " samples refused";
+  text += "\n";
+  for (std::size_t i = 0; i < r.instrument_count && i < r.instruments.size(); ++i) {
+    const InstrumentMetrics& m = r.instruments[i];
+    text += "  " + (i < instrument_names.size() ? instrument_names[i] : std::to_string(i)) + ": ";
+    text += formatted("path %.1f mm, ", m.path_length_m * 1e3);
+    text += "movements " + std::to_string(m.movements);
+    text += formatted(", idle %.2f s", m.idle_time_s);
+    if (m.motion_economy) text += formatted(", economy %.2f", *m.motion_economy);
+    text += formatted(", peak %.2f N, mean in contact %.2f N", m.peak_force_n, m.mean_contact_force_n);
+    text += ", grasps " + std::to_string(m.grasps) + " (slips " + std::to_string(m.slips) + ")\n";
+  }
+  return text;
 }
 
 }  // namespace trainer::metrics

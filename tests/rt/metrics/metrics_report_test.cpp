@@ -50,6 +50,15 @@ TEST(MetricsReport, SectionNamesInstrumentsModelsAndNullsWhatDoesNotApply) {
   EXPECT_EQ(j["worst_damage"]["time_ns"], 601'000'000);
   EXPECT_EQ(j["insertion"]["target_reached"], true);
   EXPECT_NEAR(j["insertion"]["time_to_target_s"].get<double>(), 0.477, 1e-9);
+
+  // Task 501 − 24 ms; right: 5 N once above the 4 N damage force, 1 ms above safe.
+  EXPECT_EQ(metrics_summary(m.result(), instruments),
+            "metrics: task 0.48 s (insertion target 5.0 mm reached), above safe force 0.00 s, "
+            "damage 0.00 s, 0.001 N·s, peak 5.00 N (right), insertion depth 10.0 mm\n"
+            "  left: path 11.0 mm, movements 1, idle 0.00 s, economy 1.00, peak 0.00 N, mean in "
+            "contact 0.00 N, grasps 0 (slips 0)\n"
+            "  right: path 0.0 mm, movements 0, idle 0.48 s, peak 5.00 N, mean in contact 1.00 N, "
+            "grasps 0 (slips 0)\n");
 }
 
 TEST(MetricsReport, NoCatheterAndNoDamageGiveNulls) {

@@ -203,6 +203,7 @@ TEST_P(SceneSessionMetrics, ScriptedRunGivesMetricsConsistentWithTheAppsStatisti
     instrument_names.push_back(instrument.name);
   std::printf("%s metrics:\n%s\n", scene_case.name,
               metrics_json(r, scene.metrics, instrument_names, model_names).dump(2).c_str());
+  std::printf("%s", metrics_summary(r, instrument_names).c_str());
 
   EXPECT_EQ(allocations, 0U) << "the cycle and the metrics feed together";
   EXPECT_EQ(feed.refused(), 0U);

@@ -19,4 +19,11 @@ nlohmann::json metrics_json(const SessionResult& result, const MetricsThresholds
                             std::span<const std::string> instrument_names,
                             std::span<const std::string> model_names);
 
+// The same for the human summary the trainer prints after a run: one line for the session,
+// one per instrument, e.g.
+//   metrics: task 6.10 s (insertion target 10.0 mm reached), above safe force 0.03 s, no damage
+//     left: path 75.0 mm, movements 2, idle 3.49 s, economy 1.00, peak 0.44 N, mean in contact 0.43 N, grasps 1 (slips 0)
+std::string metrics_summary(const SessionResult& result,
+                            std::span<const std::string> instrument_names);
+
 }  // namespace trainer::metrics
