@@ -256,8 +256,15 @@ TEST_P(SceneSessionMetrics, ScriptedRunGivesMetricsConsistentWithTheAppsStatisti
   }
 }
 
-// The liver scene is left out: its tensor image takes the offline tet4 FEM and tensor
-// precompute (tests/rt/app/liver_pipeline_test.sh), too long for this test's budget.
+// The liver scene is not in ctest: its tensor image takes the offline tet4 FEM and tensor
+// precompute (7.5 s with modelc's checks; tests/rt/app/liver_pipeline_test.sh), too long for
+// this test's budget. Run by hand after `modelc build --scene config/scenes/liver.toml` (the
+// image where the definition names it): --gtest_also_run_disabled_tests
+// --gtest_filter='*liver*' (docs/metrics.md "The scenes").
+INSTANTIATE_TEST_SUITE_P(DISABLED_PrebuiltImageScenes, SceneSessionMetrics,
+                         ::testing::Values(SceneCase{"liver", false}),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
 INSTANTIATE_TEST_SUITE_P(RepositoryScenes, SceneSessionMetrics,
                          ::testing::Values(SceneCase{"cbd", true}, SceneCase{"duct", false},
                                            SceneCase{"wall", false},
