@@ -31,7 +31,7 @@ struct InstrumentSample {
 
 struct CycleSample {
   std::uint64_t cycle = 0;           // cycle counter of the haptic loop
-  std::int64_t time_ns = 0;          // the cycle's deadline on the loop clock
+  std::int64_t time_ns = 0;          // the cycle's time on the loop clock (deadline or wake-up)
   std::uint32_t latched_faults = 0;  // safety::Fault bits latched at the end of the cycle
   std::uint32_t instrument_count = 0;  // entries of `instruments` in use (scene order)
   std::array<InstrumentSample, kMaxSampleInstruments> instruments{};
