@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -508,6 +509,108 @@ TEST(SessionMetricsEdge, AddAndResultDoNotAllocate) {
   EXPECT_EQ(core::alloc::counted_allocations() - before, 0U);
   EXPECT_GT(movements, 0U);
   EXPECT_EQ(m.result().samples, 5000U);
+}
+
+// ---------------------------------------------------------------- invariants
+
+TEST(SessionMetricsInvariants, RandomSessionsKeepEveryInvariant) {
+  // 200 random sessions (fixed seed): random walks of up to four tips with pauses and jumps,
+  // random forces, contacts, grasps, insertion depths, irregular periods and bad samples mixed
+  // in. After every sample: every figure finite, times within the session, per instrument
+  // moving + idle = task time, economy in (0, 1], damage within the time above the safe force.
+  std::uint64_t state = 0x9E3779B97F4A7C15ULL;
+  const auto next = [&state] {
+    state ^= state << 13U;
+    state ^= state >> 7U;
+    state ^= state << 17U;
+    return state;
+  };
+  const auto uniform = [&next](double low, double high) {
+    return low + (high - low) * static_cast<double>(next() >> 11U) * 0x1.0p-53;
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::uint64_t checked = 0;
+  // What the sessions reached, so the invariants are known to be exercised.
+  std::uint64_t movements = 0, slips = 0, damage_events = 0, targets = 0, refused = 0;
+  for (int session = 0; session < 200; ++session) {
+    SessionSetup setup;
+    setup.period_ns = 1'000'000;
+    setup.instrument_count = static_cast<std::uint32_t>(1 + next() % 4);
+    setup.thresholds.speed_window_s = uniform(0.001, 0.2);
+    setup.thresholds.min_movement_s = uniform(0.0, 0.3);
+    setup.thresholds.path_deadband_m = uniform(0.0, 5e-4);
+    if (next() % 2 == 0) setup.insertion_target_depth_m = uniform(0.001, 0.02);
+    SessionMetrics m = make_session(setup);
+    std::array<std::array<double, 3>, 4> tip{};
+    std::array<std::array<double, 3>, 4> velocity{};
+    std::int64_t time_ns = 0;
+    double depth = 0.0;
+    const int samples = static_cast<int>(next() % 3000);
+    for (int k = 0; k < samples; ++k) {
+      time_ns += 1'000'000 + static_cast<std::int64_t>(next() % 3) * 1'000'000 * (next() % 50 == 0);
+      CycleSample s;
+      s.time_ns = time_ns;
+      s.instrument_count = setup.instrument_count;
+      s.insertion_depth_m = next() % 3 == 0 ? nan : static_cast<float>(depth += uniform(-2e-5, 5e-5));
+      s.contact_model = static_cast<std::int32_t>(next() % 4) - 1;
+      for (std::size_t i = 0; i < setup.instrument_count; ++i) {
+        if (next() % 200 == 0) {
+          for (double& v : velocity[i]) v = next() % 3 == 0 ? 0.0 : uniform(-0.1, 0.1);
+        }
+        for (std::size_t a = 0; a < 3; ++a) tip[i][a] += velocity[i][a] * 1e-3 + uniform(-4e-5, 4e-5);
+        set_tip(s, i, tip[i][0], tip[i][1], tip[i][2]);
+        set_force(s, i, uniform(0.0, 1.0) < 0.5 ? 0.0 : uniform(0.0, 8.0), next() % 2 == 0);
+        s.instruments[i].contact_point_m = s.instruments[i].tip_m;
+        s.instruments[i].grasping = (static_cast<std::size_t>(k / 97) + i) % 3 == 0 ? 1 : 0;
+        s.instruments[i].grip_rad = static_cast<float>(uniform(0.0, 0.6));
+      }
+      if (next() % 100 == 0) s.instruments[0].tip_m[next() % 3] = nan;  // refused
+      (void)m.add(s);
+      if (k % 97 != 0 && k != samples - 1) continue;
+      const SessionResult r = m.result();
+      ++checked;
+      if (k == samples - 1) {
+        targets += r.insertion.target_reached ? 1U : 0U;
+        refused += r.refused_samples;
+        for (std::size_t i = 0; i < setup.instrument_count; ++i) {
+          movements += r.instruments[i].movements;
+          slips += r.instruments[i].slips;
+          damage_events += r.instruments[i].damage.events;
+        }
+      }
+      ASSERT_TRUE(std::isfinite(r.session_time_s) && std::isfinite(r.task_time_s));
+      ASSERT_LE(r.task_time_s, r.session_time_s + 1e-9);
+      ASSERT_LE(r.time_above_damage_s, r.time_above_safe_s + 1e-9);
+      ASSERT_LE(r.time_above_safe_s, r.session_time_s + 1e-9);
+      for (std::size_t i = 0; i < setup.instrument_count; ++i) {
+        const InstrumentMetrics& im = r.instruments[i];
+        ASSERT_TRUE(std::isfinite(im.path_length_m) && im.path_length_m >= 0.0);
+        ASSERT_NEAR(im.moving_time_s + im.idle_time_s, r.task_time_s, 1e-6)
+            << "session " << session << " sample " << k << " instrument " << i;
+        if (im.motion_economy) {
+          ASSERT_GT(*im.motion_economy, 0.0);
+          ASSERT_LE(*im.motion_economy, 1.0);
+        }
+        ASSERT_LE(im.damage.time_above_s, im.time_above_safe_s + 1e-9);
+        ASSERT_LE(im.contact_time_s, r.session_time_s + 1e-9);
+        ASSERT_LE(im.grasp_time_s, r.session_time_s + 1e-9);
+        ASSERT_LE(im.slips, im.grasps);
+        ASSERT_TRUE(std::isfinite(im.mean_contact_force_n) && std::isfinite(im.damage.impulse_n_s));
+      }
+    }
+  }
+  EXPECT_GT(checked, 1000U);
+  EXPECT_GT(movements, 100U);
+  EXPECT_GT(slips, 10U);
+  EXPECT_GT(damage_events, 100U);
+  EXPECT_GT(targets, 10U);
+  EXPECT_GT(refused, 100U);
+  std::printf("checked %llu results: %llu movements, %llu slips, %llu damage events, %llu targets "
+              "reached, %llu samples refused\n",
+              static_cast<unsigned long long>(checked), static_cast<unsigned long long>(movements),
+              static_cast<unsigned long long>(slips),
+              static_cast<unsigned long long>(damage_events),
+              static_cast<unsigned long long>(targets), static_cast<unsigned long long>(refused));
 }
 
 // ---------------------------------------------------------------- setup errors
