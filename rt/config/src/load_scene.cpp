@@ -1,10 +1,11 @@
-// The scene file schema: [scene], [loop], [memory], [safety], [trainee], [[instrument]],
-// [[object]], [[model]], plus the device file named by [scene] device and the model
+// The scene file schema: [scene], [loop], [memory], [safety], [trainee], [metrics],
+// [[instrument]], [[object]], [[model]], plus the device file named by [scene] device and the model
 // definition files named by [[model]] definition. Every key, unit, range and default
 // here is documented in docs/config.md; keep them in step.
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -70,6 +71,13 @@ constexpr RealRange kObjectStiffnessRange = RealRange::left_open(0.0, 1e6);
 constexpr RealRange kObjectDampingRange = RealRange::closed(0.0, 1e4);
 constexpr double kDefaultObjectDampingNsPerM = 0.0;
 constexpr RealRange kRotationComponentRangeDeg = RealRange::closed(-360.0, 360.0);
+
+constexpr RealRange kMetricsForceRangeN = RealRange::left_open(0.0, 100.0);
+constexpr RealRange kMetricsSpeedRange = RealRange::left_open(0.0, 10.0);
+constexpr RealRange kMinMovementRangeS = RealRange::closed(0.0, 10.0);
+constexpr RealRange kSpeedWindowRangeS = RealRange::left_open(0.0, 1.0);
+constexpr RealRange kPathDeadbandRangeM = RealRange::closed(0.0, 0.01);
+constexpr RealRange kGraspOpenToleranceRangeRad = RealRange::closed(0.0, 1.0);
 
 LoopConfig read_loop(TableReader& table) {
   LoopConfig loop;
@@ -159,6 +167,74 @@ TraineeConfig read_trainee(TableReader& table, const LoadOptions& options) {
   trainee.end_run_with_script = table.optional_bool("end_run_with_script", false);
   table.finish();
   return trainee;
+}
+
+std::string real_text(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%g", value);
+  return buffer;
+}
+
+// [metrics]: every key optional (defaults in metrics::MetricsThresholds). Checks across keys
+// report the key that was written: damage ≥ safe force, stop ≤ start speed, and a speed window
+// of at most metrics::kMaxSpeedWindowSamples loop periods (the default window is shortened to
+// that when the loop period is short).
+metrics::MetricsThresholds read_metrics(TableReader& table, std::int64_t period_ns,
+                                        ErrorSink& errors) {
+  const metrics::MetricsThresholds defaults{};
+  metrics::MetricsThresholds m;
+  m.safe_force_n =
+      table.optional_double("safe_force_n", defaults.safe_force_n, kMetricsForceRangeN, "newtons");
+  m.damage_force_n = table.optional_double("damage_force_n", defaults.damage_force_n,
+                                           kMetricsForceRangeN, "newtons");
+  m.movement_start_speed_m_per_s =
+      table.optional_double("movement_start_speed_m_per_s", defaults.movement_start_speed_m_per_s,
+                            kMetricsSpeedRange, "metres per second");
+  m.movement_stop_speed_m_per_s =
+      table.optional_double("movement_stop_speed_m_per_s", defaults.movement_stop_speed_m_per_s,
+                            kMetricsSpeedRange, "metres per second");
+  m.min_movement_s = table.optional_double("min_movement_s", defaults.min_movement_s,
+                                           kMinMovementRangeS, "seconds");
+  const double max_window_s = period_ns > 0
+                                  ? static_cast<double>(metrics::kMaxSpeedWindowSamples) *
+                                        static_cast<double>(period_ns) * 1e-9
+                                  : defaults.speed_window_s;
+  m.speed_window_s = table.optional_double("speed_window_s",
+                                           std::min(defaults.speed_window_s, max_window_s),
+                                           kSpeedWindowRangeS, "seconds");
+  m.path_deadband_m = table.optional_double("path_deadband_m", defaults.path_deadband_m,
+                                            kPathDeadbandRangeM, "metres");
+  m.grasp_open_tolerance_rad =
+      table.optional_double("grasp_open_tolerance_rad", defaults.grasp_open_tolerance_rad,
+                            kGraspOpenToleranceRangeRad, "radians");
+  if (errors.ok() && m.damage_force_n < m.safe_force_n) {
+    if (table.has("damage_force_n")) {
+      table.fail_value("damage_force_n", ": expected at least metrics.safe_force_n (" +
+                                             real_text(m.safe_force_n) + " N)");
+    } else {
+      table.fail_value("safe_force_n", ": expected at most metrics.damage_force_n (" +
+                                           real_text(m.damage_force_n) + " N, its default)");
+    }
+  }
+  if (errors.ok() && m.movement_stop_speed_m_per_s > m.movement_start_speed_m_per_s) {
+    if (table.has("movement_stop_speed_m_per_s")) {
+      table.fail_value("movement_stop_speed_m_per_s",
+                       ": expected at most metrics.movement_start_speed_m_per_s (" +
+                           real_text(m.movement_start_speed_m_per_s) + " m/s)");
+    } else {
+      table.fail_value("movement_start_speed_m_per_s",
+                       ": expected at least metrics.movement_stop_speed_m_per_s (" +
+                           real_text(m.movement_stop_speed_m_per_s) + " m/s, its default)");
+    }
+  }
+  if (errors.ok() && period_ns > 0 && m.speed_window_s > max_window_s * (1.0 + 1e-9)) {
+    table.fail_value("speed_window_s",
+                     ": expected at most " + std::to_string(metrics::kMaxSpeedWindowSamples) +
+                         " loop periods (" + real_text(max_window_s) + " s with loop.period_us = " +
+                         std::to_string(period_ns / kNanosecondsPerMicrosecond) + ")");
+  }
+  table.finish();
+  return m;
 }
 
 std::string instrument_names(const std::vector<std::string>& names) {
@@ -307,6 +383,8 @@ SceneConfig read_scene(const detail::ParsedFile& parsed, const LoadOptions& opti
   }
   TableReader trainee = root.optional_table("trainee");
   config.trainee = read_trainee(trainee, options);
+  TableReader metrics_table = root.optional_table("metrics");
+  config.metrics = read_metrics(metrics_table, config.loop.period_ns, errors);
 
   config.instruments = read_instruments(root, device_loaded ? &config.device : nullptr,
                                         device_display.string(), errors);

@@ -286,6 +286,70 @@ TEST_F(SceneFileTest, MissingSceneTableIsNamed) {
             no_scene.string() + ": missing required key 'scene' (table [scene])");
 }
 
+// ---------------------------------------------------------------- [metrics]
+
+TEST_F(SceneFileTest, MetricsTableIsOptionalWithTheDocumentedDefaults) {
+  const auto scene = load_scene(write_scene(wall_text_));
+  ASSERT_TRUE(scene.has_value()) << scene.error().message;
+  const metrics::MetricsThresholds& m = scene->metrics;
+  EXPECT_DOUBLE_EQ(m.safe_force_n, 2.0);
+  EXPECT_DOUBLE_EQ(m.damage_force_n, 4.0);
+  EXPECT_DOUBLE_EQ(m.movement_start_speed_m_per_s, 0.010);
+  EXPECT_DOUBLE_EQ(m.movement_stop_speed_m_per_s, 0.005);
+  EXPECT_DOUBLE_EQ(m.min_movement_s, 0.10);
+  EXPECT_DOUBLE_EQ(m.speed_window_s, 0.050);
+  EXPECT_DOUBLE_EQ(m.path_deadband_m, 1e-4);
+  EXPECT_DOUBLE_EQ(m.grasp_open_tolerance_rad, 0.05);
+}
+
+TEST_F(SceneFileTest, DefaultSpeedWindowShrinksToTheLongestAShortPeriodAllows) {
+  // 50 us loop: 512 periods are 25.6 ms, shorter than the 50 ms default.
+  const auto edited = replace_first(wall_text_, "period_us = 1000", "period_us = 50");
+  const auto scene = load_scene(write_scene(edited.text));
+  ASSERT_TRUE(scene.has_value()) << scene.error().message;
+  EXPECT_NEAR(scene->metrics.speed_window_s, 0.0256, 1e-12);
+}
+
+TEST_F(SceneFileTest, MetricsKeysAreRead) {
+  const auto edited = replace_first(
+      wall_text_, "[[instrument]]",
+      "[metrics]\nsafe_force_n = 1.5\ndamage_force_n = 3\nmovement_start_speed_m_per_s = 0.02\n"
+      "movement_stop_speed_m_per_s = 0.01\nmin_movement_s = 0.2\nspeed_window_s = 0.1\n"
+      "path_deadband_m = 0.0005\ngrasp_open_tolerance_rad = 0.1\n[[instrument]]");
+  const auto scene = load_scene(write_scene(edited.text));
+  ASSERT_TRUE(scene.has_value()) << scene.error().message;
+  const metrics::MetricsThresholds& m = scene->metrics;
+  EXPECT_DOUBLE_EQ(m.safe_force_n, 1.5);
+  EXPECT_DOUBLE_EQ(m.damage_force_n, 3.0);
+  EXPECT_DOUBLE_EQ(m.movement_start_speed_m_per_s, 0.02);
+  EXPECT_DOUBLE_EQ(m.movement_stop_speed_m_per_s, 0.01);
+  EXPECT_DOUBLE_EQ(m.min_movement_s, 0.2);
+  EXPECT_DOUBLE_EQ(m.speed_window_s, 0.1);
+  EXPECT_DOUBLE_EQ(m.path_deadband_m, 0.0005);
+  EXPECT_DOUBLE_EQ(m.grasp_open_tolerance_rad, 0.1);
+}
+
+TEST(RepositoryScenes, MetricsThresholdsAreTheScenesOwn) {
+  struct Expected {
+    const char* file;
+    double safe_force_n;
+    double damage_force_n;
+  };
+  // cbd and duct: the delicate duct; liver: a probe meant to indent; wall, catheter: defaults
+  // (their forces come from a rigid plane or the catheter, docs/metrics.md).
+  for (const Expected& e : {Expected{"config/scenes/cbd.toml", 1.0, 2.0},
+                            Expected{"config/scenes/duct.toml", 1.0, 2.0},
+                            Expected{"config/scenes/liver.toml", 4.0, 6.0},
+                            Expected{"config/scenes/wall.toml", 2.0, 4.0},
+                            Expected{"config/scenes/catheter.toml", 2.0, 4.0}}) {
+    const auto scene = load_scene(repo_path(e.file), LoadOptions{.require_script_file = false});
+    ASSERT_TRUE(scene.has_value()) << scene.error().message;
+    EXPECT_DOUBLE_EQ(scene->metrics.safe_force_n, e.safe_force_n) << e.file;
+    EXPECT_DOUBLE_EQ(scene->metrics.damage_force_n, e.damage_force_n) << e.file;
+    EXPECT_DOUBLE_EQ(scene->metrics.speed_window_s, 0.05) << e.file;
+  }
+}
+
 // ---------------------------------------------------------------- one edit, one message
 
 struct SceneErrorCase {
@@ -398,7 +462,8 @@ const SceneErrorCase kSceneErrorCases[] = {
     {"end_run_wrong_type", "end_run_with_script = true", "end_run_with_script = \"yes\"",
      "trainee.end_run_with_script = \"yes\" has type string: expected boolean"},
     {"unknown_table", "[trainee]", "[traine]",
-     "unknown key 'traine' (known: scene, loop, memory, safety, trainee, instrument, object, model); "
+     "unknown key 'traine' (known: scene, loop, memory, safety, trainee, metrics, instrument, object, "
+     "model); "
      "did you mean 'trainee'?"},
     {"unknown_device_instrument", "device_instrument = \"left\"", "device_instrument = \"center\"",
      "instrument[0].device_instrument = \"center\": expected the name of an instrument in device "
@@ -430,6 +495,36 @@ const SceneErrorCase kSceneErrorCases[] = {
     {"damping_negative", "damping_n_s_per_m = 1.0", "damping_n_s_per_m = -1.0",
      "object[0].damping_n_s_per_m = -1.0 is out of range: expected 0 to 10000 (newton-seconds "
      "per metre)"},
+    // [metrics] (written before [[instrument]]; the key is on the line after the header)
+    {"metrics_safe_zero", "[[instrument]]", "[metrics]\nsafe_force_n = 0\n[[instrument]]",
+     "metrics.safe_force_n = 0 is out of range: expected more than 0 and at most 100 (newtons)", 1},
+    {"metrics_damage_below_safe", "[[instrument]]",
+     "[metrics]\nsafe_force_n = 3.0\ndamage_force_n = 2.5\n[[instrument]]",
+     "metrics.damage_force_n = 2.5: expected at least metrics.safe_force_n (3 N)", 2},
+    {"metrics_safe_above_default_damage", "[[instrument]]",
+     "[metrics]\nsafe_force_n = 5.0\n[[instrument]]",
+     "metrics.safe_force_n = 5.0: expected at most metrics.damage_force_n (4 N, its default)", 1},
+    {"metrics_stop_above_start", "[[instrument]]",
+     "[metrics]\nmovement_stop_speed_m_per_s = 0.02\n[[instrument]]",
+     "metrics.movement_stop_speed_m_per_s = 0.02: expected at most "
+     "metrics.movement_start_speed_m_per_s (0.01 m/s)", 1},
+    {"metrics_speed_above_range", "[[instrument]]",
+     "[metrics]\nmovement_start_speed_m_per_s = 11\n[[instrument]]",
+     "metrics.movement_start_speed_m_per_s = 11 is out of range: expected more than 0 and at most "
+     "10 (metres per second)", 1},
+    {"metrics_window_too_long", "[[instrument]]", "[metrics]\nspeed_window_s = 0.6\n[[instrument]]",
+     "metrics.speed_window_s = 0.6: expected at most 512 loop periods (0.512 s with "
+     "loop.period_us = 1000)", 1},
+    {"metrics_deadband_negative", "[[instrument]]",
+     "[metrics]\npath_deadband_m = -0.1\n[[instrument]]",
+     "metrics.path_deadband_m = -0.1 is out of range: expected 0 to 0.01 (metres)", 1},
+    {"metrics_tolerance_wrong_type", "[[instrument]]",
+     "[metrics]\ngrasp_open_tolerance_rad = \"small\"\n[[instrument]]",
+     "metrics.grasp_open_tolerance_rad = \"small\" has type string: expected ", 1},
+    {"metrics_typo", "[[instrument]]", "[metrics]\npath_deadband = 0.001\n[[instrument]]",
+     "unknown key 'metrics.path_deadband' (known: safe_force_n, damage_force_n, "
+     "movement_start_speed_m_per_s, movement_stop_speed_m_per_s, min_movement_s, speed_window_s, "
+     "path_deadband_m, grasp_open_tolerance_rad); did you mean 'path_deadband_m'?", 1},
     {"instrument_typo", "device_instrument = \"left\"", "device_instrumnt = \"left\"",
      "unknown key 'instrument[0].device_instrumnt' (known: name, device_instrument); did you "
      "mean 'device_instrument'?"},

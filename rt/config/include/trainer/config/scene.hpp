@@ -17,6 +17,7 @@
 #include "trainer/config/device.hpp"
 #include "trainer/config/model.hpp"
 #include "trainer/core/expected.hpp"
+#include "trainer/metrics/thresholds.hpp"
 
 namespace trainer::config {
 
@@ -116,6 +117,8 @@ struct SceneConfig {
   std::vector<SceneInstrumentConfig> instruments;  // 1..kMaxSceneInstruments
   std::vector<ObjectConfig> objects;               // 0..kMaxObjects
   std::vector<SceneModelConfig> models;            // 0..kMaxModels
+  // [metrics]: thresholds of the trainee metrics (docs/metrics.md); every key optional.
+  metrics::MetricsThresholds metrics;
   DeviceConfig device;                             // loaded from [scene] device
 };
 
