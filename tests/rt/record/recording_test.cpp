@@ -31,7 +31,9 @@
 #include "trainer/app/trainer_run.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
+#include "trainer/metrics/session_metrics.hpp"
 #include "trainer/model_offline/modal_build.hpp"
+#include "trainer/record/cycle_sample.hpp"
 #include "trainer/record/recording.hpp"
 
 namespace trainer::app {
@@ -223,6 +225,28 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   });
   ASSERT_TRUE(scan);
   EXPECT_GT(contact_cycles, 100U);
+
+  // Trainee metrics straight from the recording's derived blocks (no replay).
+  auto scene = config::load_scene(CbdCopy::get().scene);
+  ASSERT_TRUE(scene) << scene.error().message;
+  metrics::SessionSetup setup;
+  setup.thresholds = scene->metrics;
+  setup.period_ns = scene->loop.period_ns;
+  setup.instrument_count = static_cast<std::uint32_t>(scene->instruments.size());
+  auto session = metrics::SessionMetrics::create(setup);
+  ASSERT_TRUE(session) << session.error().message;
+  auto fed = record::scan_recording(file, [&](const record::CycleRecord& r) {
+    (void)session->add(record::cycle_sample_of(r));
+    return true;
+  });
+  ASSERT_TRUE(fed);
+  const metrics::SessionResult figures = session->result();
+  EXPECT_EQ(figures.samples, kCycles);
+  EXPECT_EQ(figures.refused_samples, 0U);
+  EXPECT_TRUE(figures.task_started);
+  EXPECT_GT(figures.instruments[1].peak_force_n, 0.0);  // the right forceps on the duct
+  EXPECT_GT(figures.instruments[0].path_length_m, 0.0);
+  EXPECT_TRUE(figures.insertion.present);
   EXPECT_GE(duct_loaded_cycles, contact_cycles);
   EXPECT_EQ(other_model_cycles, 0U);
   EXPECT_GT(hash_changes, kCycles / 2);
