@@ -118,8 +118,9 @@ int main(int argc, char** argv) {
   cli.add_option("--report-dir", report_dir,
                  "Write the JSON report to DIR/<scene>-<UTC start time>.json and point "
                  "DIR/latest.json at it (the appliance: /var/lib/trainer/reports); DIR is "
-                 "created if absent")
-      ->excludes(report_opt);
+                 "created if absent; the session is recorded beside it unless --no-record")
+      ->excludes(report_opt)
+      ->excludes(replay_opt);
   cli.add_option("--time", time_source,
                  "real: CLOCK_MONOTONIC (the appliance); simulated: as fast as possible, "
                  "deterministic (simulated bench only)")
