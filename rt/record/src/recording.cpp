@@ -1,6 +1,14 @@
 #include "trainer/record/recording.hpp"
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstring>
+#include <span>
+#include <utility>
 
 namespace trainer::record {
 namespace {
@@ -107,15 +115,59 @@ class CycleVisitor final : public mcap::Visitor {
   std::string error_;
 };
 
+// A read-only private mapping of a whole file (an empty file maps to no bytes).
+class MappedFile {
+ public:
+  static core::Expected<MappedFile> open(const std::filesystem::path& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return core::make_error(path.string() + ": cannot open: " + std::strerror(errno));
+    struct stat info {};
+    if (::fstat(fd, &info) != 0) {
+      const int error = errno;
+      ::close(fd);
+      return core::make_error(path.string() + ": cannot stat: " + std::strerror(error));
+    }
+    MappedFile file;
+    file.size_ = static_cast<std::size_t>(info.st_size);
+    if (file.size_ > 0) {
+      void* data = ::mmap(nullptr, file.size_, PROT_READ, MAP_PRIVATE, fd, 0);
+      if (data == MAP_FAILED) {
+        const int error = errno;
+        ::close(fd);
+        return core::make_error(path.string() + ": cannot map: " + std::strerror(error));
+      }
+      file.data_ = static_cast<const std::uint8_t*>(data);
+      (void)::madvise(data, file.size_, MADV_SEQUENTIAL);
+    }
+    ::close(fd);
+    return file;
+  }
+  MappedFile(MappedFile&& other) noexcept
+      : data_(std::exchange(other.data_, nullptr)), size_(std::exchange(other.size_, 0)) {}
+  MappedFile& operator=(MappedFile&&) = delete;
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  ~MappedFile() {
+    if (data_ != nullptr) (void)::munmap(const_cast<std::uint8_t*>(data_), size_);
+  }
+  std::span<const std::uint8_t> bytes() const noexcept { return {data_, size_}; }
+
+ private:
+  MappedFile() = default;
+  const std::uint8_t* data_ = nullptr;
+  std::size_t size_ = 0;
+};
+
 }  // namespace
 
 core::Expected<RecordingScan> scan_recording(
     const std::filesystem::path& path, const std::function<bool(const CycleRecord&)>& on_record) {
-  auto bytes = mcap::read_file(path);
-  if (!bytes) return std::move(bytes).error();
+  // Mapped, not read: an hour at 10 kHz is ~2.4 GB; the scan touches each page once.
+  auto mapped = MappedFile::open(path);
+  if (!mapped) return std::move(mapped).error();
   RecordingScan scan;
   CycleVisitor visitor(scan, on_record);
-  auto scanned = mcap::scan(*bytes, visitor);
+  auto scanned = mcap::scan(mapped->bytes(), visitor);
   if (!scanned) return core::make_error(path.string() + ": " + scanned.error().message);
   if (!visitor.error().empty()) return core::make_error(path.string() + ": " + visitor.error());
   scan.mcap = *scanned;
