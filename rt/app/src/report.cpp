@@ -179,6 +179,7 @@ nlohmann::json telemetry_stream_json(const RunResult& r) {
   const TelemetrySenderStats& t = *r.telemetry_stream;
   return {{"destination", t.destination},
           {"rate_hz", t.rate_hz},
+          {"source_port", t.source_port},
           {"stream_id", t.stream_id},
           {"frames_sent", t.frames_sent},
           {"send_errors", t.send_errors},

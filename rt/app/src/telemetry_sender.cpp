@@ -53,8 +53,28 @@ core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
   // Nothing is ever read from this socket: keep what the kernel may queue for it small.
   const int smallest = 1;  // the kernel rounds it up to its minimum
   (void)setsockopt(sender->fd_, SOL_SOCKET, SO_RCVBUF, &smallest, sizeof smallest);
+  if (config.source_port != 0) {
+    sockaddr_storage local{};
+    local.ss_family = destination.ss_family;
+    if (destination.ss_family == AF_INET) {
+      reinterpret_cast<sockaddr_in*>(&local)->sin_port = htons(config.source_port);
+    } else {
+      reinterpret_cast<sockaddr_in6*>(&local)->sin6_port = htons(config.source_port);
+    }
+    if (bind(sender->fd_, reinterpret_cast<const sockaddr*>(&local), length) != 0) {
+      return core::make_error(where + "source_port = " + std::to_string(config.source_port) +
+                              ": " + std::strerror(errno));
+    }
+  }
   if (connect(sender->fd_, reinterpret_cast<const sockaddr*>(&destination), length) != 0) {
     return core::make_error(where + "destination " + shown + ": " + std::strerror(errno));
+  }
+  sockaddr_storage bound{};
+  socklen_t bound_length = sizeof bound;
+  if (getsockname(sender->fd_, reinterpret_cast<sockaddr*>(&bound), &bound_length) == 0) {
+    sender->stats_.source_port =
+        ntohs(bound.ss_family == AF_INET ? reinterpret_cast<sockaddr_in*>(&bound)->sin_port
+                                         : reinterpret_cast<sockaddr_in6*>(&bound)->sin6_port);
   }
   sender->period_ns_ = 1'000'000'000 / static_cast<std::int64_t>(config.rate_hz);
   sender->frame_ = std::make_unique<telemetry::Frame>();

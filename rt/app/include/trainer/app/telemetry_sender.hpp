@@ -29,6 +29,7 @@ namespace trainer::app {
 struct TelemetrySenderStats {
   std::string destination;  // "address:port" as configured ("[v6]:port" for IPv6)
   std::uint32_t rate_hz = 0;
+  std::uint16_t source_port = 0;  // the local port the frames leave from
   std::uint32_t stream_id = 0;
   std::uint64_t frames_sent = 0;
   std::uint64_t send_errors = 0;      // every failed send(), by kind below
