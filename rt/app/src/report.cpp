@@ -189,6 +189,8 @@ nlohmann::json telemetry_stream_json(const RunResult& r) {
           {"last_errno", t.last_errno},
           {"encode_errors", t.encode_errors},
           {"stale_skipped", t.stale_skipped},
+          {"trimmed", t.trimmed},
+          {"over_budget", t.over_budget},
           {"frame_bytes", {{"min", t.bytes_min}, {"p50", t.bytes_p50}, {"max", t.bytes_max}}}};
 }
 
