@@ -22,10 +22,12 @@ std::int64_t sender_clock_ns(clockid_t clock) noexcept {
 }  // namespace
 
 core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
-    const config::TelemetryConfig& config, const std::string& device_file) {
-  const std::string where = device_file + ": [telemetry] ";
+    const config::TelemetryConfig& config, const std::string& origin) {
+  const std::string where = origin + ": ";
+  // Keys as the device file's messages name them, or bare after a command-line option.
+  const std::string key = origin.rfind("--", 0) == 0 ? "" : "telemetry.";
   if (config.rate_hz < 30 || config.rate_hz > 120)
-    return core::make_error(where + "rate_hz = " + std::to_string(config.rate_hz) +
+    return core::make_error(where + key + "rate_hz = " + std::to_string(config.rate_hz) +
                             ": expected 30 to 120");
   sockaddr_storage destination{};
   socklen_t length = 0;
@@ -43,7 +45,7 @@ core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
     length = sizeof(sockaddr_in6);
     shown = "[" + config.address + "]:" + std::to_string(config.port);
   } else {
-    return core::make_error(where + "address = \"" + config.address +
+    return core::make_error(where + key + "address = \"" + config.address +
                             "\": expected a numeric IPv4 or IPv6 address");
   }
   std::unique_ptr<TelemetrySender> sender(new TelemetrySender());
@@ -62,7 +64,7 @@ core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
       reinterpret_cast<sockaddr_in6*>(&local)->sin6_port = htons(config.source_port);
     }
     if (bind(sender->fd_, reinterpret_cast<const sockaddr*>(&local), length) != 0) {
-      return core::make_error(where + "source_port = " + std::to_string(config.source_port) +
+      return core::make_error(where + key + "source_port = " + std::to_string(config.source_port) +
                               ": " + std::strerror(errno));
     }
   }

@@ -181,7 +181,8 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
   setup.app = std::move(*app);
   const config::TelemetryConfig& stream = options.telemetry ? *options.telemetry : cfg.device.telemetry;
   if (stream.enabled) {
-    auto sender = TelemetrySender::create(stream, cfg.device.source_path.string());
+    auto sender = TelemetrySender::create(
+        stream, options.telemetry ? std::string("--telemetry") : cfg.device.source_path.string());
     if (!sender) return fail(std::move(sender).error());
     setup.telemetry_sender = std::move(*sender);
   }

@@ -217,7 +217,7 @@ TEST(TelemetrySender, BadDestinationsAreRefusedNamingTheFile) {
   config.address = "viewer.local";
   auto named = TelemetrySender::create(config, "devices/sim.toml");
   ASSERT_FALSE(named);
-  EXPECT_NE(named.error().message.find("devices/sim.toml: [telemetry] address = \"viewer.local\""),
+  EXPECT_NE(named.error().message.find("devices/sim.toml: telemetry.address = \"viewer.local\""),
             std::string::npos)
       << named.error().message;
   config = loopback(47800);

@@ -57,9 +57,10 @@ class TelemetrySender {
   static constexpr std::size_t kFrameBudgetBytes = 1024;
 
   // Setup path: opens the socket (non-blocking, connected to config.address:port). Errors
-  // name the device file's [telemetry] keys and the system's reason.
+  // start with `origin` (where the settings came from: the device file's path, or
+  // "--telemetry"), then the key ("telemetry.address" in a device file) and the reason.
   static core::Expected<std::unique_ptr<TelemetrySender>> create(
-      const config::TelemetryConfig& config, const std::string& device_file);
+      const config::TelemetryConfig& config, const std::string& origin);
   ~TelemetrySender();
   TelemetrySender(const TelemetrySender&) = delete;
   TelemetrySender& operator=(const TelemetrySender&) = delete;
