@@ -303,7 +303,8 @@ DecodeResult finish_body(const WireReader& r, std::size_t body_at, bool newer_mi
   return {};
 }
 
-DecodeResult decode_modal(WireReader& r, std::size_t body_at, ModelState& m) noexcept {
+DecodeResult decode_modal(WireReader& r, std::size_t body_at, ModelState& m,
+                          bool newer_minor) noexcept {
   m.kind = ModelKind::modal;
   m.image_checksum = r.u64();
   const std::uint16_t modes = r.u16();
@@ -312,7 +313,11 @@ DecodeResult decode_modal(WireReader& r, std::size_t body_at, ModelState& m) noe
   if (r.failed()) return fail(DecodeError::bad_section, body_at, "modal section shorter than its fixed fields");
   if (modes > kMaxModes) return fail(DecodeError::capacity_exceeded, body_at + 8, "modal mode count");
   if (loads > kMaxLoads) return fail(DecodeError::capacity_exceeded, body_at + 10, "modal load count");
-  if ((m.flags & ~kKnownModalFlags) != 0) return fail(DecodeError::bad_value, body_at + 12, "modal flags");
+  // Flag bits of a newer minor version are dropped; of this one, refused.
+  if ((m.flags & ~kKnownModalFlags) != 0) {
+    if (!newer_minor) return fail(DecodeError::bad_value, body_at + 12, "modal flags");
+    m.flags &= kKnownModalFlags;
+  }
   if (r.remaining() < 4 * std::size_t{modes} + kLoadBytes * loads)
     return fail(DecodeError::bad_section, body_at, "modal section shorter than its counts");
   m.mode_count = modes;
@@ -422,8 +427,10 @@ DecodeResult decode(std::span<const std::byte> bytes, Frame& out) noexcept {
   out.send_wall_ns = h.i64();
   out.latched_faults = h.u32();
   out.flags = h.u32();
-  if (!newer_minor && (out.flags & ~kKnownFrameFlags) != 0)
-    return fail(DecodeError::bad_value, 60, "frame flags");
+  if ((out.flags & ~kKnownFrameFlags) != 0) {
+    if (!newer_minor) return fail(DecodeError::bad_value, 60, "frame flags");
+    out.flags &= kKnownFrameFlags;  // a newer minor version's flags: dropped
+  }
   out.model_count = 0;
   out.instrument_count = 0;
   out.contact_count = 0;
@@ -454,7 +461,7 @@ DecodeResult decode(std::span<const std::byte> bytes, Frame& out) noexcept {
         m = ModelState{};
         m.scene_index = index;
         if (type == static_cast<std::uint8_t>(SectionType::modal)) {
-          result = decode_modal(r, body_at, m);
+          result = decode_modal(r, body_at, m, newer_minor);
         } else if (type == static_cast<std::uint8_t>(SectionType::tensor)) {
           result = decode_tensor(r, body_at, m);
         } else {
@@ -480,8 +487,10 @@ DecodeResult decode(std::span<const std::byte> bytes, Frame& out) noexcept {
         s.force_n = r.vec3();
         result = finish_body(r, body_at, newer_minor, "instrument section shorter than its fields");
         if (!result.ok()) return result;
-        if ((s.flags & ~kKnownInstrumentFlags) != 0)
-          return fail(DecodeError::bad_value, body_at, "instrument flags");
+        if ((s.flags & ~kKnownInstrumentFlags) != 0) {
+          if (!newer_minor) return fail(DecodeError::bad_value, body_at, "instrument flags");
+          s.flags &= kKnownInstrumentFlags;
+        }
         ++out.instrument_count;
         break;
       }
