@@ -102,6 +102,7 @@ struct RunSetup {
   std::unique_ptr<HalTaps> taps;  // --record: before the app that uses them
   std::unique_ptr<SessionRecorder> recorder;
   std::unique_ptr<HapticApp> app;
+  std::unique_ptr<TelemetrySender> telemetry_sender;  // [telemetry] enabled only
   std::uint64_t cycles = 0;
   std::string backend;  // "sim" or the device file's hardware backend
   std::vector<appliance::RtCheckResult> rt_check;
@@ -200,6 +201,13 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
     setup.taps->set_wait_when_full(options.time_source == TimeSource::simulated);
     setup.app->set_recorder(setup.taps.get());
   }
+  const config::TelemetryConfig& stream = options.telemetry ? *options.telemetry : cfg.device.telemetry;
+  if (stream.enabled) {
+    auto sender = TelemetrySender::create(
+        stream, options.telemetry ? std::string("--telemetry") : cfg.device.source_path.string());
+    if (!sender) return fail(std::move(sender).error());
+    setup.telemetry_sender = std::move(*sender);
+  }
   // The trainee script plays on the simulated bench only; on hardware a person moves the
   // handles and the run lasts --cycles/--seconds or until a stop signal.
   const double script_duration_s = setup.sim != nullptr ? setup.sim->script_duration_s() : 0.0;
@@ -279,33 +287,52 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
   const std::int64_t supervisor_period_ns =
       setup.recorder && options.time_source == TimeSource::simulated ? kRecordingDrainPeriodNs
                                                                      : kSupervisorPeriodNs;
-  const auto steady_ns = [] {
+  TelemetrySender* sender = setup.telemetry_sender.get();
+  bool have_snapshot = false;
+  const auto monotonic_now_ns = [] {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(
                std::chrono::steady_clock::now().time_since_epoch())
         .count();
   };
   std::int64_t supervised_ns = 0;
   while (!finished.load(std::memory_order_acquire)) {
-    if (signals.wait_for(supervisor_period_ns) != 0) {
+    // Wakes at the recording's drain period or, with a telemetry stream, when its next frame
+    // is due (30–120 Hz), whichever comes first; else at ~30 Hz.
+    const std::int64_t wait_ns =
+        sender != nullptr
+            ? std::clamp<std::int64_t>(sender->ns_until_due(monotonic_now_ns()), 0,
+                                       supervisor_period_ns)
+            : supervisor_period_ns;
+    if (signals.wait_for(wait_ns) != 0) {
       result.stopped_by_signal = true;
       stop.store(true, std::memory_order_release);
     }
     if (setup.recorder) setup.recorder->drain();
     // Log, telemetry and service supervision at ~30 Hz whatever the recording's drain rate.
-    if (supervisor_period_ns < kSupervisorPeriodNs && !finished.load(std::memory_order_acquire) &&
-        steady_ns() - supervised_ns < kSupervisorPeriodNs) {
+    const bool frame_due = sender != nullptr && sender->ns_until_due(monotonic_now_ns()) <= 0;
+    if (supervisor_period_ns < kSupervisorPeriodNs && !frame_due &&
+        !finished.load(std::memory_order_acquire) &&
+        monotonic_now_ns() - supervised_ns < kSupervisorPeriodNs) {
       continue;
     }
-    supervised_ns = steady_ns();
+    supervised_ns = monotonic_now_ns();
     drain_log(*setup.log, options);
     if (setup.telemetry->update()) {
+      have_snapshot = true;
       service.observe(setup.telemetry->latest());
       if (options.on_telemetry) options.on_telemetry(setup.telemetry->latest());
     }
-    service.tick(finished.load(std::memory_order_acquire), supervised_ns);
+    if (sender != nullptr && have_snapshot)
+      sender->send_if_due(setup.telemetry->latest(), monotonic_now_ns());
+    service.tick(finished.load(std::memory_order_acquire), monotonic_now_ns());
   }
   service.stopping(result.stopped_by_signal);
   thread->join();
+  if (sender != nullptr) {
+    if (setup.telemetry->update()) have_snapshot = true;
+    if (have_snapshot) sender->send_final(setup.telemetry->latest(), monotonic_now_ns());
+    result.telemetry_stream = sender->stats();
+  }
   result.rt.cpu_dma_latency_us = cpu_latency.latency_us();
   if (!cpu_latency.warning().empty()) result.rt.warnings.push_back(cpu_latency.warning());
   result.loop = periodic.stats();
