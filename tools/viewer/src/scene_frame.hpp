@@ -30,12 +30,20 @@ struct ModelState {
   std::vector<std::array<float, 3>> particles_m;  // catheter: particle positions, trainer frame
 };
 
+// An instrument's segments (trainer frame, m) and the force commanded on it (N).
 struct InstrumentState {
-  std::array<float, 5> joints{};           // pitch rad, yaw rad, insertion m, roll rad, grip rad
-  std::array<float, 3> tissue_force_n{};   // force of the tissue on the tool, trainer frame
-  std::array<float, 3> contact_point_m{};  // where it acts, trainer frame
-  bool in_contact = false;
-  bool grasping = false;
+  std::array<float, 3> shaft_start_m{};  // handle end of the shaft
+  std::array<float, 3> hinge_m{};        // jaw hinge
+  std::array<std::array<float, 3>, 2> jaw_tips_m{};
+  std::array<float, 3> force_n{};        // commanded on the tool after the safety chain
+  std::uint32_t flags = 0;               // telemetry::InstrumentFlag bits (contact, grasping, ...)
+};
+
+// A contact point and the force on the tissue there (trainer frame): a force arrow.
+struct ContactArrow {
+  std::uint32_t instrument = 0;
+  std::array<float, 3> point_m{};
+  std::array<float, 3> force_n{};
 };
 
 // Timestamps on CLOCK_REALTIME (ns since the epoch), 0 when the source does not know them.
@@ -52,6 +60,7 @@ struct SceneFrame {
   std::uint32_t latched_faults = 0;
   std::vector<ModelState> models;          // one per scene model, scene order
   std::vector<InstrumentState> instruments;  // one per scene instrument, scene order
+  std::vector<ContactArrow> contacts;
 };
 
 }  // namespace trainer::viewer

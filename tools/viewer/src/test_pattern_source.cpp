@@ -51,9 +51,17 @@ core::Expected<bool> TestPatternSource::next(SceneFrame& frame, std::chrono::mil
     }
   }
   frame.instruments.assign(assets_.instruments().size(), InstrumentState{});
-  for (InstrumentState& instrument : frame.instruments) {
-    instrument.joints = {static_cast<float>(0.1 * std::sin(phase)), 0.0F, 0.1F, 0.0F,
-                         static_cast<float>(0.3 + 0.3 * std::sin(phase))};
+  frame.contacts.clear();
+  for (std::size_t i = 0; i < frame.instruments.size(); ++i) {
+    const kinematics::JointVector joints{static_cast<float>(0.1 * std::sin(phase)), 0.0F, 0.1F,
+                                         0.0F, static_cast<float>(0.3 + 0.3 * std::sin(phase))};
+    const kinematics::InstrumentPose pose = assets_.instruments()[i].kinematics.forward(joints);
+    InstrumentState& instrument = frame.instruments[i];
+    auto put = [](std::array<float, 3>& to, const kinematics::Vec3& from) { to = {from.x(), from.y(), from.z()}; };
+    put(instrument.shaft_start_m, pose.shaft_start_m);
+    put(instrument.hinge_m, pose.hinge_m);
+    put(instrument.jaw_tips_m[0], pose.jaw_tips_m[0]);
+    put(instrument.jaw_tips_m[1], pose.jaw_tips_m[1]);
   }
   return true;
 }

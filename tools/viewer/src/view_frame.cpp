@@ -110,19 +110,23 @@ core::Expected<void> ViewFrameEncoder::encode(const SceneFrame& frame, std::vect
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
   put_value(out, 56, reconstruct_us);
 
-  for (std::size_t i = 0; i < instruments.size(); ++i) {
-    const InstrumentState& state = frame.instruments[i];
-    const kinematics::InstrumentPose pose = instruments[i].kinematics.forward(state.joints);
+  for (const InstrumentState& state : frame.instruments) {
     float values[kInstrumentFloats];
-    auto put3 = [&values](std::size_t at, const float* v) { std::copy_n(v, 3, values + at); };
-    put3(0, pose.shaft_start_m.data());
-    put3(3, pose.hinge_m.data());
-    put3(6, pose.jaw_tips_m[0].data());
-    put3(9, pose.jaw_tips_m[1].data());
-    put3(12, state.contact_point_m.data());
-    put3(15, state.tissue_force_n.data());
-    values[18] = static_cast<float>((state.in_contact ? 1U : 0U) | (state.grasping ? 2U : 0U));
+    std::copy_n(state.shaft_start_m.data(), 3, values);
+    std::copy_n(state.hinge_m.data(), 3, values + 3);
+    std::copy_n(state.jaw_tips_m[0].data(), 3, values + 6);
+    std::copy_n(state.jaw_tips_m[1].data(), 3, values + 9);
+    std::copy_n(state.force_n.data(), 3, values + 12);
+    values[15] = static_cast<float>(state.flags);
     append_floats(out, values, kInstrumentFloats);
+  }
+  append_value(out, static_cast<std::uint32_t>(frame.contacts.size()));
+  for (const ContactArrow& contact : frame.contacts) {
+    float values[kContactFloats];
+    std::copy_n(contact.point_m.data(), 3, values);
+    std::copy_n(contact.force_n.data(), 3, values + 3);
+    values[6] = static_cast<float>(contact.instrument);
+    append_floats(out, values, kContactFloats);
   }
   return {};
 }

@@ -20,8 +20,9 @@
 //      rebuilt in the viewer; the r modal coordinates of a modal model the browser rebuilds
 //      (then the loads follow, for its static correction); 3N particle positions (trainer
 //      frame) of a catheter.
-//   then per instrument 19 × f32 (trainer frame): shaft start, hinge, jaw 0 tip, jaw 1 tip,
-//      contact point, tissue force on the tool (N), flags (bit 0 contact, bit 1 grasping).
+//   then per instrument 16 × f32 (trainer frame): shaft start, hinge, jaw 0 tip, jaw 1 tip,
+//      commanded force on the tool (N), flags (telemetry InstrumentFlag bits as a float);
+//   then u32 contact count c, c × 7 f32: point (m), force on the tissue (N), instrument index.
 #pragma once
 
 #include <chrono>
@@ -41,7 +42,8 @@ enum class Reconstruction : std::uint8_t { viewer, browser };
 constexpr std::uint32_t kViewFrameMagic = 0x31465654U;  // "TVF1"
 constexpr std::size_t kViewFrameHeaderBytes = 80;
 constexpr std::size_t kViewFrameHandedOffset = 48;
-constexpr std::size_t kInstrumentFloats = 19;
+constexpr std::size_t kInstrumentFloats = 16;
+constexpr std::size_t kContactFloats = 7;
 
 std::int64_t realtime_now_ns() noexcept;
 

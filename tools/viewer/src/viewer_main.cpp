@@ -15,6 +15,7 @@
 #include "frame_source.hpp"
 #include "scene_assets.hpp"
 #include "test_pattern_source.hpp"
+#include "udp_source.hpp"
 #include "view_frame.hpp"
 #include "viewer_loop.hpp"
 #include "web_server.hpp"
@@ -93,8 +94,12 @@ int main(int argc, char** argv) {
   if (source_name == "test-pattern") {
     source = std::make_unique<viewer::TestPatternSource>(**assets, pattern_rate_hz);
   } else {
-    std::fprintf(stderr, "viewer: the udp source needs the telemetry wire format (not merged yet)\n");
-    return 1;
+    auto udp_source = viewer::UdpSource::open(**assets, udp);
+    if (!udp_source) {
+      std::fprintf(stderr, "viewer: %s\n", udp_source.error().message.c_str());
+      return 1;
+    }
+    source = std::move(udp_source).value();
   }
 
   std::printf("viewer: scene '%s' (%s), %zu model(s):\n", (*assets)->scene_name().c_str(),

@@ -1,5 +1,7 @@
 // Decodes one "TVF1" binary frame (tools/viewer/src/view_frame.hpp) into typed-array views.
 const MAGIC = 0x31465654;
+const INSTRUMENT_FLOATS = 16;  // shaft start, hinge, jaw 0 tip, jaw 1 tip, force, flags
+const CONTACT_FLOATS = 7;      // point, force on the tissue, instrument
 
 export function decodeFrame(buffer, sceneInfo) {
   const view = new DataView(buffer);
@@ -15,6 +17,7 @@ export function decodeFrame(buffer, sceneInfo) {
     flags: view.getUint32(68, true),
     models: [],
     instruments: [],
+    contacts: [],
   };
   const modelCount = view.getUint32(72, true);
   const instrumentCount = view.getUint32(76, true);
@@ -37,8 +40,14 @@ export function decodeFrame(buffer, sceneInfo) {
     frame.models.push({ floats, loads });
   }
   for (let i = 0; i < instrumentCount; ++i) {
-    frame.instruments.push(new Float32Array(buffer, at, 19));
-    at += 4 * 19;
+    frame.instruments.push(new Float32Array(buffer, at, INSTRUMENT_FLOATS));
+    at += 4 * INSTRUMENT_FLOATS;
+  }
+  const contactCount = view.getUint32(at, true);
+  at += 4;
+  for (let c = 0; c < contactCount; ++c) {
+    frame.contacts.push(new Float32Array(buffer, at, CONTACT_FLOATS));
+    at += 4 * CONTACT_FLOATS;
   }
   return frame;
 }

@@ -38,7 +38,8 @@ window.addEventListener('resize', () => {
 const tissueColours = { modal_shell: 0xd98c8c, tet_tensor: 0x9c4a3c };
 let sceneInfo = null;
 const drawn = [];        // per model: { kind, mesh|tube, rest, rebuilder }
-const instruments = [];  // per instrument: { shaft, jaws, arrow }
+const instruments = [];  // per instrument: { shaft, jaws }
+const arrows = [];       // contact force arrows, reused
 let pending = null;      // the newest frame not drawn yet
 
 function placementMatrix(m) {
@@ -82,7 +83,6 @@ async function loadScene() {
                       material: new THREE.MeshStandardMaterial({ color: 0xe8d27a, roughness: 0.5 }) };
       drawn.push(entry);
       setCatheter(entry, rest);
-      for (let i = 0; i + 2 < rest.length; i += 3) box.expandByPoint(new THREE.Vector3(rest[i], rest[i + 1], rest[i + 2]));
       continue;
     }
     const geometry = new THREE.BufferGeometry();
@@ -101,18 +101,15 @@ async function loadScene() {
     drawn.push({ kind: m.kind, rest, mesh, rebuilder });
   }
   for (const instrument of sceneInfo.instruments) {
-    instruments.push({
-      shaft: segment(0.0025, 0x8a939c), jaws: [segment(0.0012, 0xc0c8d0), segment(0.0012, 0xc0c8d0)],
-      arrow: (() => { const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0x36c26b, 0.006, 0.004);
-                      a.visible = false; scene.add(a); return a; })(),
-      name: instrument.name,
-    });
+    instruments.push({ shaft: segment(0.0025, 0x8a939c), jaws: [segment(0.0012, 0xc0c8d0), segment(0.0012, 0xc0c8d0)],
+                       name: instrument.name });
   }
   if (box.isEmpty()) box.setFromCenterAndSize(new THREE.Vector3(0, 0, -0.1), new THREE.Vector3(0.1, 0.1, 0.1));
   const centre = box.getCenter(new THREE.Vector3());
   const size = box.getSize(new THREE.Vector3()).length();
   controls.target.copy(centre);
-  camera.position.copy(centre).add(new THREE.Vector3(0.15 * size, -1.1 * size, 0.55 * size));
+  // The tissue models fill the middle of the view; the catheter's far end and the shafts may leave it.
+  camera.position.copy(centre).add(new THREE.Vector3(0.6 * size, -3.0 * size, 1.6 * size));
   controls.update();
   stats.sceneLoaded = true;
 }
@@ -172,18 +169,25 @@ function draw(frame) {
     placeSegment(tool.shaft, v(f, 0), hinge);
     placeSegment(tool.jaws[0], hinge, v(f, 6));
     placeSegment(tool.jaws[1], hinge, v(f, 9));
-    const force = v(f, 15);
-    const magnitude = force.length();
-    tool.arrow.visible = (f[18] & 1) !== 0 && magnitude > 1e-4;
-    if (tool.arrow.visible) {
-      // The force on the tissue (opposite of the one on the tool) drawn into the contact point.
-      const onTissue = force.clone().negate().divideScalar(magnitude);
-      const length = Math.max(0.004, magnitude * forceScale);
-      tool.arrow.position.copy(v(f, 12)).addScaledVector(onTissue, -length);
-      tool.arrow.setDirection(onTissue);
-      tool.arrow.setLength(length, Math.min(0.006, 0.4 * length), 0.004);
-    }
   }
+  // Contact force arrows: the force on the tissue, drawn ending at the contact point.
+  while (arrows.length < frame.contacts.length) {
+    const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0x36c26b, 0.006, 0.004);
+    scene.add(arrow);
+    arrows.push(arrow);
+  }
+  arrows.forEach((arrow, k) => {
+    const c = frame.contacts[k];
+    const force = c ? v(c, 3) : null;
+    const magnitude = force ? force.length() : 0;
+    arrow.visible = magnitude > 1e-4;
+    if (!arrow.visible) return;
+    const direction = force.divideScalar(magnitude);
+    const length = Math.max(0.004, magnitude * forceScale);
+    arrow.position.copy(v(c, 0)).addScaledVector(direction, -length);
+    arrow.setDirection(direction);
+    arrow.setLength(length, Math.min(0.006, 0.4 * length), 0.004);
+  });
   const banner = document.getElementById('banner');
   if (frame.faults !== 0 || stats.error) {
     banner.style.display = 'block';
@@ -214,9 +218,14 @@ function updatePanel(latestCycleNs) {
       html += row(key.replace(/_/g, ' '), typeof value === 'number' ? fmt(value, 3) : String(value));
     }
   }
-  if (session.stream && typeof session.stream === 'object') {
-    html += sectionRow('stream');
-    for (const [key, value] of Object.entries(session.stream)) html += row(key.replace(/_/g, ' '), String(value));
+  const stream = session.stream;
+  if (stream && typeof stream === 'object' && stream.source === 'udp') {
+    html += sectionRow('stream') + row('datagram bytes', stream.datagram_bytes) +
+      row('received', stream.datagrams) + row('lost', stream.lost) +
+      row('dropped (dup/late/stale)', `${stream.duplicates}/${stream.late}/${stream.stale}`) +
+      row('malformed / refused', `${stream.malformed} / ${stream.refused}`);
+  } else if (stream && typeof stream === 'object') {
+    html += sectionRow('stream') + row('source', stream.source);
   }
   document.getElementById('session').innerHTML = html;
 }
