@@ -1,7 +1,7 @@
 // Sends the cbd scene's telemetry as the appliance would, for the viewer's tests until (and
 // besides) the trainer's own sender: frames encoded by the telemetry wire library at a fixed
 // rate to 127.0.0.1:PORT, with the scene's image checksums, the duct's first modes swinging
-// (a few mm), the instruments still, the catheter at rest, real timestamps (cycle = send
+// (a few mm), a tensor model pressed at one contact node (up to 4 mm), the instruments still, the catheter at rest, real timestamps (cycle = send
 // instant, CLOCK_MONOTONIC and CLOCK_REALTIME as the appliance stamps them).
 // usage: telemetry_test_sender SCENE PORT SECONDS [RATE_HZ]
 #include <arpa/inet.h>
@@ -65,7 +65,20 @@ int main(int argc, char** argv) {
         s.kind = telemetry::ModelKind::modal;
         s.mode_count = models[i].mode_count;
         break;
-      case config::ModelKind::tet_tensor: s.kind = telemetry::ModelKind::tensor; break;
+      case config::ModelKind::tet_tensor:
+        s.kind = telemetry::ModelKind::tensor;
+        s.contact_count = models[i].surface_nodes.empty() ? 0U : 1U;  // pressed below (swinging)
+        if (s.contact_count != 0) s.contacts[0].node = models[i].surface_nodes[0];
+        // The top contact node nearest the middle of the top face (largest z, then smallest |x|+|y|).
+        for (const std::uint32_t node : models[i].surface_nodes) {
+          const float* p = models[i].rest_positions.data() + 3U * node;
+          const float* q = models[i].rest_positions.data() + 3U * s.contacts[0].node;
+          if (p[2] > q[2] + 1e-6F ||
+              (p[2] > q[2] - 1e-6F && std::abs(p[0]) + std::abs(p[1]) < std::abs(q[0]) + std::abs(q[1]))) {
+            s.contacts[0].node = node;
+          }
+        }
+        break;
       case config::ModelKind::catheter:
         s.kind = telemetry::ModelKind::catheter;
         s.particle_count = models[i].node_count;
@@ -100,6 +113,10 @@ int main(int argc, char** argv) {
     ++frame->sequence;
     frame->cycle = static_cast<std::uint64_t>(t * 1000.0);
     for (std::size_t i = 0; i < models.size(); ++i) {
+      if (models[i].kind == config::ModelKind::tet_tensor && frame->models[i].contact_count != 0) {
+        frame->models[i].contacts[0].displacement_m = {
+            0.0F, 0.0F, static_cast<float>(-0.004 * (0.5 + 0.5 * std::sin(2.0 * std::numbers::pi * t)))};
+      }
       if (models[i].kind != config::ModelKind::modal_shell) continue;
       for (std::uint32_t k = 0; k < 3 && k < models[i].mode_count; ++k) {
         frame->models[i].modal_coordinates[k] =

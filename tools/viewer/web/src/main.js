@@ -256,6 +256,7 @@ function connect() {
     stats.framesReceived += 1;
     stats.frameBytes = event.data.byteLength;
     pending = frame;
+    window.viewerLastFrame = frame;
   };
 }
 
