@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
       if (models[i].kind != config::ModelKind::modal_shell) continue;
       for (std::uint32_t k = 0; k < 3 && k < models[i].mode_count; ++k) {
         frame->models[i].modal_coordinates[k] =
-            static_cast<float>(2e-4 * std::sin(2.0 * std::numbers::pi * t + k));
+            static_cast<float>(6e-5 * std::sin(2.0 * std::numbers::pi * t + k));
       }
     }
     frame->cycle_time_ns = sender_clock_ns(CLOCK_MONOTONIC);
