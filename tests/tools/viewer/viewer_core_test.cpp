@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "reconstruct.hpp"
 #include "scene_assets.hpp"
@@ -286,6 +287,47 @@ TEST(ViewerPageFrame, LayoutAndPlacements) {
   ViewFrameEncoder encoder(assets(), Reconstruction::viewer);
   std::vector<std::byte> out;
   EXPECT_FALSE(encoder.encode(frame, out));
+}
+
+}  // namespace
+}  // namespace trainer::viewer
+
+namespace trainer::viewer {
+namespace {
+
+// With VIEWER_TEST_JS_FIXTURE=DIR: writes what the page gets in browser mode (scene.json, the
+// duct's data) plus a state and the C++ rebuild of it, for check_browser_rebuild.mjs to compare
+// web/src/reconstruct.js against.
+TEST(ViewerReconstruct, WritesTheBrowserRebuildFixture) {
+  const char* dir = std::getenv("VIEWER_TEST_JS_FIXTURE");
+  if (dir == nullptr) GTEST_SKIP() << "VIEWER_TEST_JS_FIXTURE not set";
+  ViewFrameEncoder encoder(assets(), Reconstruction::browser);
+  ModelState state;
+  for (std::uint32_t i = 0; i < 24; ++i) {
+    state.modal_coordinates.push_back(1e-5F * static_cast<float>(i % 5) - 2e-5F);
+  }
+  state.loads = {NodeLoad{duct().surface_nodes[7], {0.3F, -0.1F, 0.2F}},
+                 NodeLoad{duct().surface_nodes[200], {0.0F, 0.4F, -0.25F}}};
+  std::vector<float> expected(3U * duct().node_count);
+  ASSERT_TRUE(reconstruct_modal(duct(), state, expected));
+  auto write = [dir](const char* name, const void* data, std::size_t bytes) {
+    FILE* file = std::fopen((std::string(dir) + "/" + name).c_str(), "wb");
+    ASSERT_NE(file, nullptr);
+    ASSERT_EQ(std::fwrite(data, 1, bytes, file), bytes);
+    std::fclose(file);
+  };
+  const std::string scene = encoder.scene_json();
+  write("scene.json", scene.data(), scene.size());
+  const std::vector<std::byte> blob = encoder.model_blob(0);
+  write("model0.bin", blob.data(), blob.size());
+  write("coordinates.bin", state.modal_coordinates.data(), 4 * state.modal_coordinates.size());
+  nlohmann::json load_list = nlohmann::json::array();
+  for (const NodeLoad& load : state.loads) {
+    load_list.push_back({{"node", load.node}, {"force", load.force_n}});
+  }
+  const std::string loads = load_list.dump();
+  write("loads.json", loads.data(), loads.size());
+  write("expected.bin", expected.data(), 4 * expected.size());
 }
 
 }  // namespace

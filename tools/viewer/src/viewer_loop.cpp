@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -16,6 +17,15 @@ double viewer_frame_reconstruct_us(const std::vector<std::byte>& frame) {
   double value = 0.0;
   std::memcpy(&value, frame.data() + 56, sizeof value);
   return value;
+}
+
+// The metrics file's JSON object as text, "{}" when there is none (or it is not an object).
+std::string read_metrics_file(const std::string& path) {
+  if (path.empty()) return "{}";
+  std::ifstream in(path);
+  if (!in) return "{}";
+  const nlohmann::json metrics = nlohmann::json::parse(in, nullptr, false);
+  return metrics.is_object() ? metrics.dump() : "{}";
 }
 
 }  // namespace
@@ -37,7 +47,8 @@ std::string session_json(const LoopSummary& summary, const FrameSource& source,
 }
 
 LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebServer& server,
-                            double seconds, const std::function<bool()>& should_stop) {
+                            double seconds, const std::function<bool()>& should_stop,
+                            const std::string& metrics_file) {
   LoopSummary summary;
   const auto start = std::chrono::steady_clock::now();
   auto next_session = start + std::chrono::seconds(1);
@@ -51,7 +62,7 @@ LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebS
     if (seconds > 0.0 && summary.seconds >= seconds) break;
     if (now >= next_session) {
       next_session += std::chrono::seconds(1);
-      server.broadcast_text(session_json(summary, source, "{}"));
+      server.broadcast_text(session_json(summary, source, read_metrics_file(metrics_file)));
     }
     auto got = source.next(frame, std::chrono::milliseconds(50));
     if (!got) {

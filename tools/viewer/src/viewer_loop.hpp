@@ -24,9 +24,12 @@ struct LoopSummary {
   std::string last_error;
 };
 
-// Runs until `seconds` have passed (0: no limit) or should_stop() is true.
+// Runs until `seconds` have passed (0: no limit) or should_stop() is true. `metrics_file`, when
+// not empty, is read once a second: its JSON object becomes the session panel's trainee metrics
+// (a file another process rewrites; missing or unparsable: the panel shows none).
 LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebServer& server,
-                            double seconds, const std::function<bool()>& should_stop);
+                            double seconds, const std::function<bool()>& should_stop,
+                            const std::string& metrics_file = {});
 
 void print_summary(const LoopSummary& summary, WebServer& server, const FrameSource& source);
 

@@ -53,6 +53,7 @@ int main(int argc, char** argv) {
   std::string reconstruction_name = "viewer";
   double seconds = 0.0;
   double pattern_rate_hz = 60.0;
+  std::string metrics_file;
   app.add_option("--scene", scene_file, "scene file the appliance runs (its models' images are loaded)")
       ->required();
   app.add_option("--source", source_name, "frame source: udp (the trainer's stream) or test-pattern")
@@ -68,6 +69,8 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", seconds, "stop after this long (0: until SIGINT/SIGTERM)");
   app.add_option("--pattern-rate", pattern_rate_hz, "test-pattern frame rate, Hz")
       ->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--metrics", metrics_file,
+                 "JSON file with the trainee metrics for the session panel (re-read every second)");
   CLI11_PARSE(app, argc, argv);
 
   auto assets = viewer::SceneAssets::load(scene_file);
@@ -117,7 +120,7 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, viewer_on_signal);
   std::signal(SIGTERM, viewer_on_signal);
   viewer::LoopSummary summary = viewer::run_viewer_loop(*source, encoder, **server, seconds,
-                                                        [] { return g_viewer_stop != 0; });
+                                                        [] { return g_viewer_stop != 0; }, metrics_file);
   viewer::print_summary(summary, **server, *source);
   return 0;
 }

@@ -214,9 +214,14 @@ function updatePanel(latestCycleNs) {
   const metrics = session.metrics;
   if (metrics && typeof metrics === 'object' && Object.keys(metrics).length) {
     html += sectionRow('trainee metrics');
-    for (const [key, value] of Object.entries(metrics)) {
-      html += row(key.replace(/_/g, ' '), typeof value === 'number' ? fmt(value, 3) : String(value));
-    }
+    const add = (prefix, object) => {
+      for (const [key, value] of Object.entries(object)) {
+        const name = `${prefix}${key.replace(/_/g, ' ')}`;
+        if (value && typeof value === 'object' && !Array.isArray(value)) add(`${name} · `, value);
+        else html += row(name, typeof value === 'number' ? fmt(value, 3) : String(value));
+      }
+    };
+    add('', metrics);
   }
   const stream = session.stream;
   if (stream && typeof stream === 'object' && stream.source === 'udp') {
