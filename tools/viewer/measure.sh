@@ -9,9 +9,9 @@
 #   tools/viewer/measure.sh [--build DIR] [--seconds S] [--reconstruct viewer|browser]
 #                           [--rate HZ] [--scene FILE] [--trainer]
 #   --trainer: the stream comes from the trainer running the scene on the simulated bench in
-#              real time (its [telemetry] section must send to the viewer's port, see
-#              docs/telemetry.md); default: telemetry_test_sender (the wire library, duct modes
-#              swinging), which measures the viewer and the page without the appliance.
+#              real time (trainer --telemetry 127.0.0.1:PORT --telemetry-rate RATE, rerun
+#              while the measurement lasts); default: telemetry_test_sender (the wire library,
+#              duct modes swinging), which measures the viewer and the page without the appliance.
 set -euo pipefail
 source_dir=$(cd "$(dirname "$0")/../.." && pwd)
 build="$source_dir/build/release"
@@ -44,8 +44,12 @@ for _ in $(seq 200); do grep -q "page at" "$work/viewer.txt" && break; sleep 0.0
 http_port=$(sed -n 's|.*page at http://127.0.0.1:\([0-9]*\)/.*|\1|p' "$work/viewer.txt")
 udp_port=$(sed -n 's|.*frames from udp 127.0.0.1:\([0-9]*\) .*|\1|p' "$work/viewer.txt")
 if [ "$use_trainer" -eq 1 ]; then
-  "$build/bin/trainer" --scene "$scene" --hal sim --time real --seconds $((seconds + 20)) \
-    >"$work/sender.txt" 2>&1 &
+  # The cbd script ends the run after ~11 s: the scene is rerun until the measurement is over.
+  ( end=$((SECONDS + seconds + 20))
+    while [ $SECONDS -lt $end ]; do
+      "$build/bin/trainer" --scene "$scene" --hal sim --time real --no-rt \
+        --telemetry "127.0.0.1:$udp_port" --telemetry-rate "$rate" >>"$work/sender.txt" 2>&1 || break
+    done ) &
 else
   "$build/tests/tools/viewer/telemetry_test_sender" "$scene" "$udp_port" $((seconds + 20)) "$rate" \
     >"$work/sender.txt" 2>&1 &

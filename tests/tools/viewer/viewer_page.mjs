@@ -4,7 +4,7 @@
 // keeps the page open for --seconds and reports frame rate and latency per hop (measure mode).
 //
 //   node viewer_page.mjs --modules DIR --url URL [--chromium PATH] [--screenshot FILE]
-//                        [--model I] [--gap-ms MS] [--seconds S] [--json FILE]
+//                        [--model I] [--gap-ms MS] [--attempts N] [--seconds S] [--json FILE]
 // Exit: 0 pass, 1 fail, 77 chromium absent (ctest SKIP_RETURN_CODE).
 import { createRequire } from 'node:module';
 import fs from 'node:fs';
@@ -53,30 +53,37 @@ try {
   const rect = await page.evaluate((i) => window.viewerScreenRects()[i], modelIndex);
   if (!rect || rect.width < 10 || rect.height < 10) throw new Error(`model ${modelIndex} is not on screen: ${JSON.stringify(rect)}`);
   const clip = { x: Math.floor(rect.x), y: Math.floor(rect.y), width: Math.ceil(rect.width), height: Math.ceil(rect.height) };
-  const first = await page.screenshot({ encoding: 'base64', clip });
-  const cycleFirst = await page.evaluate(() => window.viewerStats.lastCycle);
-  await new Promise((r) => setTimeout(r, gapMs));
-  const second = await page.screenshot({ encoding: 'base64', clip });
-  const cycleSecond = await page.evaluate(() => window.viewerStats.lastCycle);
-  // Decode both PNGs in the page and count the pixels that differ.
-  const changed = await page.evaluate(async (a, b) => {
-    const load = async (data) => {
-      const image = new Image();
-      image.src = `data:image/png;base64,${data}`;
-      await image.decode();
-      const canvas = document.createElement('canvas');
-      canvas.width = image.width; canvas.height = image.height;
-      const context = canvas.getContext('2d');
-      context.drawImage(image, 0, 0);
-      return context.getImageData(0, 0, image.width, image.height).data;
-    };
-    const pa = await load(a), pb = await load(b);
-    let count = 0;
-    for (let i = 0; i < pa.length; i += 4) {
-      if (Math.abs(pa[i] - pb[i]) + Math.abs(pa[i + 1] - pb[i + 1]) + Math.abs(pa[i + 2] - pb[i + 2]) > 24) ++count;
-    }
-    return { count, total: pa.length / 4 };
-  }, first, second);
+  // Pairs of screenshots gapMs apart until one pair differs (a live scene deforms at its own
+  // pace: the trainer's duct only while a tool or the catheter loads it), at most `attempts`.
+  const attempts = Number(args.attempts ?? 1);
+  let changed = null, cycleFirst = 0, cycleSecond = 0;
+  for (let attempt = 0; attempt < attempts; ++attempt) {
+    const first = await page.screenshot({ encoding: 'base64', clip });
+    cycleFirst = await page.evaluate(() => window.viewerStats.lastCycle);
+    await new Promise((r) => setTimeout(r, gapMs));
+    const second = await page.screenshot({ encoding: 'base64', clip });
+    cycleSecond = await page.evaluate(() => window.viewerStats.lastCycle);
+    // Decode both PNGs in the page and count the pixels that differ.
+    changed = await page.evaluate(async (a, b) => {
+      const load = async (data) => {
+        const image = new Image();
+        image.src = `data:image/png;base64,${data}`;
+        await image.decode();
+        const canvas = document.createElement('canvas');
+        canvas.width = image.width; canvas.height = image.height;
+        const context = canvas.getContext('2d');
+        context.drawImage(image, 0, 0);
+        return context.getImageData(0, 0, image.width, image.height).data;
+      };
+      const pa = await load(a), pb = await load(b);
+      let count = 0;
+      for (let i = 0; i < pa.length; i += 4) {
+        if (Math.abs(pa[i] - pb[i]) + Math.abs(pa[i + 1] - pb[i + 1]) + Math.abs(pa[i + 2] - pb[i + 2]) > 24) ++count;
+      }
+      return { count, total: pa.length / 4 };
+    }, first, second);
+    if (cycleSecond !== cycleFirst && changed.count >= 0.002 * changed.total) break;
+  }
   if (args.screenshot) await page.screenshot({ path: args.screenshot });
   const result = { rect: clip, cycles: [cycleFirst, cycleSecond], changedPixels: changed.count, pixels: changed.total };
   if (cycleSecond === cycleFirst) fail(`no new frame between the screenshots (cycle ${cycleFirst})`);

@@ -18,7 +18,7 @@ class FrameSource {
   // Waits up to `timeout` for the next frame. true: `frame` holds it; false: nothing yet. An
   // error is a frame refused (bad checksums, malformed): the source stays usable.
   virtual core::Expected<bool> next(SceneFrame& frame, std::chrono::milliseconds timeout) = 0;
-  // One line for the start-up message ("udp 0.0.0.0:7400").
+  // One line for the start-up message ("udp 0.0.0.0:47800").
   virtual std::string describe() const = 0;
   // The stream's counters for the session panel, a JSON object.
   virtual std::string stats_json() const = 0;

@@ -123,7 +123,7 @@ core::Expected<std::unique_ptr<UdpSource>> UdpSource::open(const SceneAssets& as
             inet_pton(AF_INET, endpoint.substr(0, colon).c_str(), &address.sin_addr) == 1;
   }
   if (!valid) {
-    return core::make_error("--udp " + endpoint + ": expected IPv4address:port, e.g. 0.0.0.0:7400");
+    return core::make_error("--udp " + endpoint + ": expected IPv4address:port, e.g. 0.0.0.0:47800");
   }
   address.sin_port = htons(static_cast<std::uint16_t>(port));
   std::unique_ptr<UdpSource> source(new UdpSource(assets));

@@ -26,7 +26,7 @@ core::Expected<void> scene_frame_from_telemetry(const SceneAssets& assets,
 
 class UdpSource final : public FrameSource {
  public:
-  // `endpoint` is "address:port" (IPv4, e.g. 0.0.0.0:7400; port 0 picks a free one).
+  // `endpoint` is "address:port" (IPv4, e.g. 0.0.0.0:47800; port 0 picks a free one).
   static core::Expected<std::unique_ptr<UdpSource>> open(const SceneAssets& assets,
                                                          const std::string& endpoint);
   ~UdpSource() override;

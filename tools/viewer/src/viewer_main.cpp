@@ -46,7 +46,7 @@ int main(int argc, char** argv) {
   CLI::App app{"viewer: draws the trainer's scene live in a browser from its telemetry stream"};
   std::filesystem::path scene_file;
   std::string source_name = "udp";
-  std::string udp = "0.0.0.0:7400";
+  std::string udp = "0.0.0.0:47800";
   std::string http_address = "127.0.0.1";
   std::uint16_t http_port = 8080;
   std::filesystem::path web_root = default_web_root(argv[0]);
