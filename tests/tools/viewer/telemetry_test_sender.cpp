@@ -1,9 +1,9 @@
 // Sends the cbd scene's telemetry as the appliance would, for the viewer's tests until (and
 // besides) the trainer's own sender: frames encoded by the telemetry wire library at a fixed
 // rate to 127.0.0.1:PORT, with the scene's image checksums, the duct's first modes swinging
-// (a few mm), a tensor model pressed at one contact node (up to 4 mm), the instruments still, the catheter at rest, real timestamps (cycle = send
-// instant, CLOCK_MONOTONIC and CLOCK_REALTIME as the appliance stamps them).
-// usage: telemetry_test_sender SCENE PORT SECONDS [RATE_HZ]
+// (a few mm), a tensor model pressed at one contact node (up to 4 mm), the instruments still, the
+// catheter at rest, real timestamps (cycle = send instant, CLOCK_MONOTONIC and CLOCK_REALTIME as
+// the appliance stamps them). usage: telemetry_test_sender SCENE PORT SECONDS [RATE_HZ]
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -69,12 +69,13 @@ int main(int argc, char** argv) {
         s.kind = telemetry::ModelKind::tensor;
         s.contact_count = models[i].surface_nodes.empty() ? 0U : 1U;  // pressed below (swinging)
         if (s.contact_count != 0) s.contacts[0].node = models[i].surface_nodes[0];
-        // The top contact node nearest the middle of the top face (largest z, then smallest |x|+|y|).
+        // The top contact node nearest the middle of the top face (largest z, then smallest
+        // |x|+|y|).
         for (const std::uint32_t node : models[i].surface_nodes) {
           const float* p = models[i].rest_positions.data() + 3U * node;
           const float* q = models[i].rest_positions.data() + 3U * s.contacts[0].node;
-          if (p[2] > q[2] + 1e-6F ||
-              (p[2] > q[2] - 1e-6F && std::abs(p[0]) + std::abs(p[1]) < std::abs(q[0]) + std::abs(q[1]))) {
+          if (p[2] > q[2] + 1e-6F || (p[2] > q[2] - 1e-6F && std::abs(p[0]) + std::abs(p[1]) <
+                                                                 std::abs(q[0]) + std::abs(q[1]))) {
             s.contacts[0].node = node;
           }
         }
@@ -92,13 +93,14 @@ int main(int argc, char** argv) {
   const auto instruments = (*assets)->instruments();
   frame->instrument_count = static_cast<std::uint32_t>(instruments.size());
   for (std::size_t i = 0; i < instruments.size(); ++i) {
-    const kinematics::InstrumentPose pose =
-        instruments[i].kinematics.forward({0.25F * (i == 0 ? 1.0F : -1.0F), 0.0F, 0.09F, 0.0F, 0.4F});
+    const kinematics::InstrumentPose pose = instruments[i].kinematics.forward(
+        {0.25F * (i == 0 ? 1.0F : -1.0F), 0.0F, 0.09F, 0.0F, 0.4F});
     telemetry::InstrumentState& s = frame->instruments[i];
     s.tip_m = {pose.tip_m.x(), pose.tip_m.y(), pose.tip_m.z()};
     s.hinge_m = {pose.hinge_m.x(), pose.hinge_m.y(), pose.hinge_m.z()};
     s.shaft_start_m = {pose.shaft_start_m.x(), pose.shaft_start_m.y(), pose.shaft_start_m.z()};
-    s.opening_direction = {pose.opening_direction.x(), pose.opening_direction.y(), pose.opening_direction.z()};
+    s.opening_direction = {pose.opening_direction.x(), pose.opening_direction.y(),
+                           pose.opening_direction.z()};
     s.grip_rad = 0.4F;
   }
   std::vector<std::byte> bytes(telemetry::kMaxDatagramBytes);
@@ -106,16 +108,19 @@ int main(int argc, char** argv) {
   const auto start = std::chrono::steady_clock::now();
   auto due = start;
   std::size_t size = 0;
-  while (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < seconds) {
+  while (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() <
+         seconds) {
     std::this_thread::sleep_until(due);
     due += period;
-    const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double t =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ++frame->sequence;
     frame->cycle = static_cast<std::uint64_t>(t * 1000.0);
     for (std::size_t i = 0; i < models.size(); ++i) {
       if (models[i].kind == config::ModelKind::tet_tensor && frame->models[i].contact_count != 0) {
         frame->models[i].contacts[0].displacement_m = {
-            0.0F, 0.0F, static_cast<float>(-0.004 * (0.5 + 0.5 * std::sin(2.0 * std::numbers::pi * t)))};
+            0.0F, 0.0F,
+            static_cast<float>(-0.004 * (0.5 + 0.5 * std::sin(2.0 * std::numbers::pi * t)))};
       }
       if (models[i].kind != config::ModelKind::modal_shell) continue;
       for (std::uint32_t k = 0; k < 3 && k < models[i].mode_count; ++k) {

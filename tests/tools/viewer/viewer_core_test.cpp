@@ -48,7 +48,9 @@ SceneAssets& assets() {
   return *loaded;
 }
 
-const ModelAssets& duct() { return assets().models()[0]; }
+const ModelAssets& duct() {
+  return assets().models()[0];
+}
 
 // Runs the runtime modal model on the duct image with two surface loads for a few steps and
 // checks reconstruct_modal on (its q, its loads) against ModalModel::reconstruct.
@@ -73,14 +75,15 @@ void expect_matches_runtime(std::uint32_t active_modes) {
   for (int step = 0; step < 12; ++step) {
     runtime->clear_forces();
     for (const NodeLoad& load : state.loads) {
-      ASSERT_TRUE(runtime->add_node_force(load.node, model::Vec3(load.force_n[0], load.force_n[1],
-                                                                  load.force_n[2])));
+      ASSERT_TRUE(runtime->add_node_force(
+          load.node, model::Vec3(load.force_n[0], load.force_n[1], load.force_n[2])));
     }
     ASSERT_TRUE(runtime->step());
   }
   std::vector<float> expected(3U * duct().node_count);
   ASSERT_TRUE(runtime->reconstruct(expected));
-  for (const double q : runtime->modal_displacement()) state.modal_coordinates.push_back(static_cast<float>(q));
+  for (const double q : runtime->modal_displacement())
+    state.modal_coordinates.push_back(static_cast<float>(q));
   ASSERT_EQ(state.modal_coordinates.size(), active_modes == 0 ? duct().mode_count : active_modes);
   std::vector<float> rebuilt(3U * duct().node_count);
   ASSERT_TRUE(reconstruct_modal(duct(), state, rebuilt));
@@ -94,7 +97,9 @@ void expect_matches_runtime(std::uint32_t active_modes) {
   EXPECT_LT(worst, 1e-4F * largest) << "largest " << largest;
 }
 
-TEST(ViewerReconstruct, ModalMatchesTheRuntimeWithStaticCorrection) { expect_matches_runtime(0); }
+TEST(ViewerReconstruct, ModalMatchesTheRuntimeWithStaticCorrection) {
+  expect_matches_runtime(0);
+}
 
 TEST(ViewerReconstruct, ModalMatchesTheRuntimeOverFewerModesThanStored) {
   expect_matches_runtime(20);
@@ -152,7 +157,8 @@ std::unique_ptr<telemetry::Frame> wire_frame(std::uint64_t sequence) {
       s.kind = telemetry::ModelKind::catheter;
       s.particle_count = m.node_count;
       for (std::uint32_t p = 0; p < m.node_count; ++p) {
-        s.particles_m[p] = {m.rest_positions[3 * p], m.rest_positions[3 * p + 1], m.rest_positions[3 * p + 2]};
+        s.particles_m[p] = {m.rest_positions[3 * p], m.rest_positions[3 * p + 1],
+                            m.rest_positions[3 * p + 2]};
       }
     }
   }
@@ -180,7 +186,8 @@ class Sender {
   }
   ~Sender() { close(fd_); }
   void send(std::span<const std::byte> bytes) {
-    ASSERT_EQ(sendto(fd_, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_),
+    ASSERT_EQ(sendto(fd_, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to_),
+                     sizeof to_),
               static_cast<ssize_t>(bytes.size()));
   }
   void send(const telemetry::Frame& frame) {
@@ -245,7 +252,8 @@ TEST(ViewerUdpSource, DecodesOrdersAndRefuses) {
   sender.send(junk);
   got = next();
   ASSERT_FALSE(got);
-  EXPECT_NE(got.error().message.find("malformed datagram"), std::string::npos) << got.error().message;
+  EXPECT_NE(got.error().message.find("malformed datagram"), std::string::npos)
+      << got.error().message;
 
   sender.send(*wire_frame(5));
   got = next();

@@ -56,7 +56,8 @@ core::Expected<void> reconstruct_modal(const ModelAssets& model, const ModelStat
     for (std::size_t b = 0; b < 3; ++b) {
       const float f = load.force_n[b];
       if (f == 0.0F) continue;
-      const float* row = model.residual_compliance.data() + (3U * static_cast<std::size_t>(s_l) + b) * s3;
+      const float* row =
+          model.residual_compliance.data() + (3U * static_cast<std::size_t>(s_l) + b) * s3;
       for (std::size_t k = 0; k < model.surface_nodes.size(); ++k) {
         float* u = out.data() + 3U * model.surface_nodes[k];
         u[0] += row[3 * k] * f;

@@ -91,7 +91,8 @@ core::Expected<std::unique_ptr<SceneAssets>> SceneAssets::load(
       m.omega_squared = image->floats(model::SectionId::omega_squared);
       m.mode_count = image->cols(model::SectionId::mode_shapes);
       m.residual_compliance = image->floats(model::SectionId::residual_compliance);
-      m.static_correction = image->metadata().static_correction != 0 && !m.residual_compliance.empty();
+      m.static_correction =
+          image->metadata().static_correction != 0 && !m.residual_compliance.empty();
       m.surface_index.assign(m.node_count, -1);
       for (std::size_t s = 0; s < m.surface_nodes.size(); ++s) {
         m.surface_index[m.surface_nodes[s]] = static_cast<std::int32_t>(s);
@@ -114,8 +115,8 @@ core::Expected<std::unique_ptr<SceneAssets>> SceneAssets::load(
   for (const config::SceneInstrumentConfig& instrument : scene->instruments) {
     const config::InstrumentDeviceConfig& device =
         scene->device.instruments.at(instrument.device_instrument);
-    assets->instruments_.push_back(
-        InstrumentAssets{instrument.name, kinematics::TrocarKinematics(app::trocar_geometry(device))});
+    assets->instruments_.push_back(InstrumentAssets{
+        instrument.name, kinematics::TrocarKinematics(app::trocar_geometry(device))});
   }
   return assets;
 }
@@ -123,9 +124,10 @@ core::Expected<std::unique_ptr<SceneAssets>> SceneAssets::load(
 core::Expected<void> SceneAssets::check_checksums(
     std::span<const std::uint64_t> stream_checksums) const {
   if (stream_checksums.size() != models_.size()) {
-    return core::make_error("stream refused: it carries " + std::to_string(stream_checksums.size()) +
-                            " model image(s), scene '" + scene_name_ + "' (" +
-                            scene_path_.string() + ") has " + std::to_string(models_.size()));
+    return core::make_error("stream refused: it carries " +
+                            std::to_string(stream_checksums.size()) + " model image(s), scene '" +
+                            scene_name_ + "' (" + scene_path_.string() + ") has " +
+                            std::to_string(models_.size()));
   }
   for (std::size_t i = 0; i < models_.size(); ++i) {
     if (stream_checksums[i] != models_[i].checksum) {

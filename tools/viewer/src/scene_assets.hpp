@@ -30,19 +30,19 @@ struct ModelAssets {
   std::filesystem::path image_path;
   std::uint64_t checksum = 0;  // the image header's XXH64
   std::size_t image_bytes = 0;
-  app::RigidTransform placement;  // model frame -> trainer frame (identity for catheters)
-  std::uint32_t node_count = 0;   // nodes (modal, tensor) or particles (catheter)
-  std::uint32_t mode_count = 0;   // modal: stored modes
+  app::RigidTransform placement;   // model frame -> trainer frame (identity for catheters)
+  std::uint32_t node_count = 0;    // nodes (modal, tensor) or particles (catheter)
+  std::uint32_t mode_count = 0;    // modal: stored modes
   bool static_correction = false;  // modal: the image has a residual compliance
   // Views into the image (the arena holds the bytes).
-  std::span<const float> rest_positions;        // 3n, model frame (catheter: trainer frame)
-  std::span<const std::uint32_t> triangles;     // 3m
-  std::span<const float> mode_shapes;           // modal: 3n × r row-major
-  std::span<const float> omega_squared;         // modal: r
+  std::span<const float> rest_positions;         // 3n, model frame (catheter: trainer frame)
+  std::span<const std::uint32_t> triangles;      // 3m
+  std::span<const float> mode_shapes;            // modal: 3n × r row-major
+  std::span<const float> omega_squared;          // modal: r
   std::span<const std::uint32_t> surface_nodes;  // modal: s; tensor: contact nodes
-  std::span<const float> residual_compliance;   // modal: 3s × 3s, empty without static correction
-  std::vector<std::int32_t> surface_index;      // modal: per node, index in surface_nodes or -1
-  std::optional<model::TensorModel> tensor;     // tensor: the runtime model, rebuilt per frame
+  std::span<const float> residual_compliance;    // modal: 3s × 3s, empty without static correction
+  std::vector<std::int32_t> surface_index;       // modal: per node, index in surface_nodes or -1
+  std::optional<model::TensorModel> tensor;      // tensor: the runtime model, rebuilt per frame
 };
 
 struct InstrumentAssets {

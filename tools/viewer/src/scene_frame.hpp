@@ -24,9 +24,9 @@ struct TensorContactState {
 
 // One scene model's state, in scene order; only the members of its kind are used.
 struct ModelState {
-  std::vector<float> modal_coordinates;        // modal: q, first modes (kg^1/2·m)
-  std::vector<NodeLoad> loads;                 // modal: the forces of the step (static correction)
-  std::vector<TensorContactState> contacts;    // tensor: imposed contact displacements
+  std::vector<float> modal_coordinates;      // modal: q, first modes (kg^1/2·m)
+  std::vector<NodeLoad> loads;               // modal: the forces of the step (static correction)
+  std::vector<TensorContactState> contacts;  // tensor: imposed contact displacements
   std::vector<std::array<float, 3>> particles_m;  // catheter: particle positions, trainer frame
 };
 
@@ -35,8 +35,8 @@ struct InstrumentState {
   std::array<float, 3> shaft_start_m{};  // handle end of the shaft
   std::array<float, 3> hinge_m{};        // jaw hinge
   std::array<std::array<float, 3>, 2> jaw_tips_m{};
-  std::array<float, 3> force_n{};        // commanded on the tool after the safety chain
-  std::uint32_t flags = 0;               // telemetry::InstrumentFlag bits (contact, grasping, ...)
+  std::array<float, 3> force_n{};  // commanded on the tool after the safety chain
+  std::uint32_t flags = 0;         // telemetry::InstrumentFlag bits (contact, grasping, ...)
 };
 
 // A contact point and the force on the tissue there (trainer frame): a force arrow.
@@ -58,7 +58,7 @@ struct SceneFrame {
   std::uint64_t cycle = 0;
   FrameTimes times;
   std::uint32_t latched_faults = 0;
-  std::vector<ModelState> models;          // one per scene model, scene order
+  std::vector<ModelState> models;            // one per scene model, scene order
   std::vector<InstrumentState> instruments;  // one per scene instrument, scene order
   std::vector<ContactArrow> contacts;
 };

@@ -45,8 +45,8 @@ core::Expected<bool> TestPatternSource::next(SceneFrame& frame, std::chrono::mil
       }
     } else if (m.kind == config::ModelKind::catheter) {
       for (std::size_t p = 0; p < m.node_count; ++p) {
-        state.particles_m.push_back({m.rest_positions[3 * p], m.rest_positions[3 * p + 1],
-                                     m.rest_positions[3 * p + 2]});
+        state.particles_m.push_back(
+            {m.rest_positions[3 * p], m.rest_positions[3 * p + 1], m.rest_positions[3 * p + 2]});
       }
     }
   }
@@ -57,7 +57,9 @@ core::Expected<bool> TestPatternSource::next(SceneFrame& frame, std::chrono::mil
                                          0.0F, static_cast<float>(0.3 + 0.3 * std::sin(phase))};
     const kinematics::InstrumentPose pose = assets_.instruments()[i].kinematics.forward(joints);
     InstrumentState& instrument = frame.instruments[i];
-    auto put = [](std::array<float, 3>& to, const kinematics::Vec3& from) { to = {from.x(), from.y(), from.z()}; };
+    auto put = [](std::array<float, 3>& to, const kinematics::Vec3& from) {
+      to = {from.x(), from.y(), from.z()};
+    };
     put(instrument.shaft_start_m, pose.shaft_start_m);
     put(instrument.hinge_m, pose.hinge_m);
     put(instrument.jaw_tips_m[0], pose.jaw_tips_m[0]);
@@ -66,7 +68,9 @@ core::Expected<bool> TestPatternSource::next(SceneFrame& frame, std::chrono::mil
   return true;
 }
 
-std::string TestPatternSource::describe() const { return "test pattern (synthetic, no appliance)"; }
+std::string TestPatternSource::describe() const {
+  return "test pattern (synthetic, no appliance)";
+}
 
 std::string TestPatternSource::stats_json() const {
   return "{\"source\":\"test-pattern\",\"frames\":" + std::to_string(count_) + "}";

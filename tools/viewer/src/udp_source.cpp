@@ -73,9 +73,11 @@ core::Expected<void> scene_frame_from_telemetry(const SceneAssets& assets,
     }
     m.contacts.clear();
     for (std::uint32_t c = 0; c < state.contact_count; ++c) {
-      m.contacts.push_back(TensorContactState{state.contacts[c].node, state.contacts[c].displacement_m});
+      m.contacts.push_back(
+          TensorContactState{state.contacts[c].node, state.contacts[c].displacement_m});
     }
-    m.particles_m.assign(state.particles_m.begin(), state.particles_m.begin() + state.particle_count);
+    m.particles_m.assign(state.particles_m.begin(),
+                         state.particles_m.begin() + state.particle_count);
   }
   out.instruments.resize(in.instrument_count);
   for (std::uint32_t i = 0; i < in.instrument_count; ++i) {
@@ -103,8 +105,8 @@ core::Expected<void> scene_frame_from_telemetry(const SceneAssets& assets,
   }
   out.contacts.resize(in.contact_count);
   for (std::uint32_t c = 0; c < in.contact_count; ++c) {
-    out.contacts[c] = ContactArrow{in.contacts[c].instrument, in.contacts[c].point_m,
-                                   in.contacts[c].force_n};
+    out.contacts[c] =
+        ContactArrow{in.contacts[c].instrument, in.contacts[c].point_m, in.contacts[c].force_n};
   }
   return {};
 }
@@ -123,7 +125,8 @@ core::Expected<std::unique_ptr<UdpSource>> UdpSource::open(const SceneAssets& as
             inet_pton(AF_INET, endpoint.substr(0, colon).c_str(), &address.sin_addr) == 1;
   }
   if (!valid) {
-    return core::make_error("--udp " + endpoint + ": expected IPv4address:port, e.g. 0.0.0.0:47800");
+    return core::make_error("--udp " + endpoint +
+                            ": expected IPv4address:port, e.g. 0.0.0.0:47800");
   }
   address.sin_port = htons(static_cast<std::uint16_t>(port));
   std::unique_ptr<UdpSource> source(new UdpSource(assets));
@@ -164,8 +167,8 @@ core::Expected<bool> UdpSource::next(SceneFrame& frame, std::chrono::millisecond
   const telemetry::DecodeResult result = telemetry::decode({buffer_.data(), size}, *decoded_);
   if (!result.ok()) {
     ++malformed_;
-    return core::make_error("malformed datagram (" + std::to_string(size) + " bytes): " +
-                            telemetry::to_string(result.error) + " at byte " +
+    return core::make_error("malformed datagram (" + std::to_string(size) +
+                            " bytes): " + telemetry::to_string(result.error) + " at byte " +
                             std::to_string(result.offset) + " (" + result.detail + ")");
   }
   if (sequencer_.offer(decoded_->stream_id, decoded_->sequence) !=
@@ -182,25 +185,27 @@ core::Expected<bool> UdpSource::next(SceneFrame& frame, std::chrono::millisecond
 
 std::string UdpSource::describe() const {
   return "udp " + address_ + ":" + std::to_string(port_) + " (telemetry wire format " +
-         std::to_string(telemetry::kVersionMajor) + "." + std::to_string(telemetry::kVersionMinor) + ")";
+         std::to_string(telemetry::kVersionMajor) + "." + std::to_string(telemetry::kVersionMinor) +
+         ")";
 }
 
 std::string UdpSource::stats_json() const {
   const telemetry::Sequencer::Counters& c = sequencer_.counters();
-  nlohmann::json stats{{"source", "udp"},
-                       {"port", port_},
-                       {"datagrams", datagrams_},
-                       {"accepted", c.accepted},
-                       {"lost", sequencer_.lost()},
-                       {"duplicates", c.duplicates},
-                       {"late", c.late},
-                       {"stale", c.stale},
-                       {"malformed", malformed_},
-                       {"refused", refused_},
-                       {"stream_restarts", c.stream_restarts},
-                       {"datagram_bytes", bytes_last_},
-                       {"datagram_bytes_mean", datagrams_ ? bytes_total_ / static_cast<double>(datagrams_) : 0.0},
-                       {"datagram_bytes_max", bytes_max_}};
+  nlohmann::json stats{
+      {"source", "udp"},
+      {"port", port_},
+      {"datagrams", datagrams_},
+      {"accepted", c.accepted},
+      {"lost", sequencer_.lost()},
+      {"duplicates", c.duplicates},
+      {"late", c.late},
+      {"stale", c.stale},
+      {"malformed", malformed_},
+      {"refused", refused_},
+      {"stream_restarts", c.stream_restarts},
+      {"datagram_bytes", bytes_last_},
+      {"datagram_bytes_mean", datagrams_ ? bytes_total_ / static_cast<double>(datagrams_) : 0.0},
+      {"datagram_bytes_max", bytes_max_}};
   return stats.dump();
 }
 

@@ -55,7 +55,8 @@ std::int64_t realtime_now_ns() noexcept {
 ViewFrameEncoder::ViewFrameEncoder(SceneAssets& assets, Reconstruction reconstruction)
     : assets_(assets), reconstruction_(reconstruction) {}
 
-core::Expected<void> ViewFrameEncoder::encode(const SceneFrame& frame, std::vector<std::byte>& out) {
+core::Expected<void> ViewFrameEncoder::encode(const SceneFrame& frame,
+                                              std::vector<std::byte>& out) {
   std::span<ModelAssets> models = assets_.models();
   std::span<const InstrumentAssets> instruments = assets_.instruments();
   if (frame.models.size() != models.size() || frame.instruments.size() != instruments.size()) {
@@ -156,7 +157,8 @@ std::string ViewFrameEncoder::scene_json() const {
     entry["browser_rebuilds"] = browser_rebuilds(reconstruction_, m);
     const auto& r = m.placement.rotation();
     const auto& t = m.placement.translation_m();
-    entry["rotation"] = {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0), r(2, 1), r(2, 2)};
+    entry["rotation"] = {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1),
+                         r(1, 2), r(2, 0), r(2, 1), r(2, 2)};
     entry["translation_m"] = {t(0), t(1), t(2)};
     entry["data"] = "/model/" + std::to_string(i) + ".bin";
     // Offsets (in 4-byte words) and lengths of the arrays in model_blob(i).

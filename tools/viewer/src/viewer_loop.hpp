@@ -13,11 +13,11 @@
 namespace trainer::viewer {
 
 struct LoopSummary {
-  std::uint64_t frames = 0;          // accepted from the source
-  std::uint64_t refused = 0;         // refused by the source or the encoder
+  std::uint64_t frames = 0;   // accepted from the source
+  std::uint64_t refused = 0;  // refused by the source or the encoder
   std::uint64_t last_cycle = 0;
   double seconds = 0.0;
-  double mean_frame_bytes = 0.0;     // WebSocket frame
+  double mean_frame_bytes = 0.0;  // WebSocket frame
   double max_frame_bytes = 0.0;
   double mean_reconstruct_us = 0.0;  // rebuild + encode in the viewer
   double max_reconstruct_us = 0.0;

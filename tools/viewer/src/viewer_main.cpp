@@ -27,7 +27,9 @@
 namespace {
 
 volatile std::sig_atomic_t g_viewer_stop = 0;
-extern "C" void viewer_on_signal(int /*signal*/) { g_viewer_stop = 1; }
+extern "C" void viewer_on_signal(int /*signal*/) {
+  g_viewer_stop = 1;
+}
 
 std::filesystem::path default_web_root(const char* argv0) {
   // Installed layout first (bin/viewer next to share/viewer), then the build tree's bundle.
@@ -54,12 +56,15 @@ int main(int argc, char** argv) {
   double seconds = 0.0;
   double pattern_rate_hz = 60.0;
   std::string metrics_file;
-  app.add_option("--scene", scene_file, "scene file the appliance runs (its models' images are loaded)")
+  app.add_option("--scene", scene_file,
+                 "scene file the appliance runs (its models' images are loaded)")
       ->required();
-  app.add_option("--source", source_name, "frame source: udp (the trainer's stream) or test-pattern")
+  app.add_option("--source", source_name,
+                 "frame source: udp (the trainer's stream) or test-pattern")
       ->check(CLI::IsMember({"udp", "test-pattern"}));
   app.add_option("--udp", udp, "address:port the stream arrives on (udp source)");
-  app.add_option("--http-address", http_address, "address the page is served on (0.0.0.0: the LAN)");
+  app.add_option("--http-address", http_address,
+                 "address the page is served on (0.0.0.0: the LAN)");
   app.add_option("--http-port", http_port, "port the page is served on (0: any free port)");
   app.add_option("--web", web_root, "directory of the bundled page (index.html, viewer.js)");
   app.add_option("--reconstruct", reconstruction_name,
@@ -114,13 +119,14 @@ int main(int argc, char** argv) {
   }
   std::printf("  frames from %s; surfaces rebuilt in the %s\n", source->describe().c_str(),
               reconstruction_name.c_str());
-  std::printf("  page at http://%s:%u/\n", http_address.c_str(), static_cast<unsigned>((*server)->port()));
+  std::printf("  page at http://%s:%u/\n", http_address.c_str(),
+              static_cast<unsigned>((*server)->port()));
   std::fflush(stdout);
 
   std::signal(SIGINT, viewer_on_signal);
   std::signal(SIGTERM, viewer_on_signal);
-  viewer::LoopSummary summary = viewer::run_viewer_loop(*source, encoder, **server, seconds,
-                                                        [] { return g_viewer_stop != 0; }, metrics_file);
+  viewer::LoopSummary summary = viewer::run_viewer_loop(
+      *source, encoder, **server, seconds, [] { return g_viewer_stop != 0; }, metrics_file);
   viewer::print_summary(summary, **server, *source);
   return 0;
 }

@@ -42,17 +42,26 @@ core::Expected<std::unique_ptr<WebServer>> WebServer::start(const WebServerOptio
                                                             WebContent content) {
   std::error_code error;
   if (!std::filesystem::is_regular_file(options.web_root / "index.html", error)) {
-    return core::make_error("viewer: no page in " + options.web_root.string() +
-                            " (index.html missing: build the 'viewer_page' target, or pass --web DIR)");
+    return core::make_error(
+        "viewer: no page in " + options.web_root.string() +
+        " (index.html missing: build the 'viewer_page' target, or pass --web DIR)");
   }
   std::unique_ptr<WebServer> server(new WebServer());
   server->content_ = std::move(content);
   mg_init_library(0);
   const std::string ports = options.address + ":" + std::to_string(options.port);
   const std::string root = options.web_root.string();
-  const char* settings[] = {"listening_ports", ports.c_str(), "document_root", root.c_str(),
-                            "num_threads", "8", "websocket_timeout_ms", "3600000",
-                            "enable_directory_listing", "no", nullptr};
+  const char* settings[] = {"listening_ports",
+                            ports.c_str(),
+                            "document_root",
+                            root.c_str(),
+                            "num_threads",
+                            "8",
+                            "websocket_timeout_ms",
+                            "3600000",
+                            "enable_directory_listing",
+                            "no",
+                            nullptr};
   mg_callbacks callbacks{};
   mg_init_data init{};
   init.callbacks = &callbacks;
@@ -88,14 +97,16 @@ int WebServer::handle_request(mg_connection* connection) {
   const mg_request_info* request = mg_get_request_info(connection);
   const std::string_view uri = request->local_uri != nullptr ? request->local_uri : "";
   if (uri == "/scene.json") {
-    mg_send_http_ok(connection, "application/json", static_cast<long long>(content_.scene_json.size()));
+    mg_send_http_ok(connection, "application/json",
+                    static_cast<long long>(content_.scene_json.size()));
     mg_write(connection, content_.scene_json.data(), content_.scene_json.size());
     return 200;
   }
   constexpr std::string_view prefix = "/model/";
   constexpr std::string_view suffix = ".bin";
   if (uri.starts_with(prefix) && uri.ends_with(suffix)) {
-    const std::string_view digits = uri.substr(prefix.size(), uri.size() - prefix.size() - suffix.size());
+    const std::string_view digits =
+        uri.substr(prefix.size(), uri.size() - prefix.size() - suffix.size());
     std::size_t index = 0;
     bool valid = !digits.empty() && digits.size() < 4;
     for (const char c : digits) {
@@ -133,8 +144,8 @@ void WebServer::broadcast_frame(std::vector<std::byte>& frame) {
   ViewFrameEncoder::stamp_handed(frame, realtime_now_ns());
   for (mg_connection* client : clients_) {
     mg_lock_connection(client);
-    mg_websocket_write(client, MG_WEBSOCKET_OPCODE_BINARY, reinterpret_cast<const char*>(frame.data()),
-                       frame.size());
+    mg_websocket_write(client, MG_WEBSOCKET_OPCODE_BINARY,
+                       reinterpret_cast<const char*>(frame.data()), frame.size());
     mg_unlock_connection(client);
   }
   if (!clients_.empty()) frames_sent_.fetch_add(1);
