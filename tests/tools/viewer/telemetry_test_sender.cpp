@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   const auto port = static_cast<std::uint16_t>(std::atoi(argv[2]));
   const double seconds = std::atof(argv[3]);
   const double rate_hz = argc > 4 ? std::atof(argv[4]) : 60.0;
+  const double fault_after_s = argc > 5 ? std::atof(argv[5]) : -1.0;
   const int fd = socket(AF_INET, SOCK_DGRAM, 0);
   sockaddr_in to{};
   to.sin_family = AF_INET;
@@ -116,6 +117,7 @@ int main(int argc, char** argv) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ++frame->sequence;
     frame->cycle = static_cast<std::uint64_t>(t * 1000.0);
+    frame->latched_faults = fault_after_s >= 0.0 && t >= fault_after_s ? 0x4U : 0U;
     for (std::size_t i = 0; i < models.size(); ++i) {
       if (models[i].kind == config::ModelKind::tet_tensor && frame->models[i].contact_count != 0) {
         frame->models[i].contacts[0].displacement_m = {

@@ -5,6 +5,7 @@
 //
 //   node viewer_page.mjs --modules DIR --url URL [--chromium PATH] [--screenshot FILE]
 //                        [--model I] [--gap-ms MS] [--attempts N] [--seconds S] [--json FILE]
+//                        [--expect-fault S]  (a fault banner must show within S seconds)
 // Exit: 0 pass, 1 fail, 77 chromium absent (ctest SKIP_RETURN_CODE).
 import { createRequire } from 'node:module';
 import fs from 'node:fs';
@@ -85,6 +86,16 @@ try {
     if (cycleSecond !== cycleFirst && changed.count >= 0.002 * changed.total) break;
   }
   if (args.screenshot) await page.screenshot({ path: args.screenshot });
+  if (args['expect-fault']) {
+    // The stream latches a fault: the banner must show it.
+    try {
+      await page.waitForFunction(() => { const b = document.getElementById('banner');
+                                         return b.style.display === 'block' && b.textContent.startsWith('FAULT'); },
+                                 { timeout: Number(args['expect-fault']) * 1000, polling: 100 });
+    } catch {
+      fail(`no fault banner within ${args['expect-fault']} s`);
+    }
+  }
   const result = { rect: clip, cycles: [cycleFirst, cycleSecond], changedPixels: changed.count, pixels: changed.total };
   if (cycleSecond === cycleFirst) fail(`no new frame between the screenshots (cycle ${cycleFirst})`);
   if (changed.count < 0.002 * changed.total) fail(`the model's screen area did not change: ${changed.count} of ${changed.total} pixels`);
