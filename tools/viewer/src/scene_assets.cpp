@@ -44,6 +44,7 @@ core::Expected<std::unique_ptr<SceneAssets>> SceneAssets::load(
   std::unique_ptr<SceneAssets> assets(new SceneAssets());
   assets->scene_name_ = scene->name;
   assets->scene_path_ = scene->source_path;
+  assets->period_s_ = static_cast<double>(scene->loop.period_ns) * 1e-9;
 
   std::size_t arena_bytes = kAssetArenaSlackBytes;
   for (const config::SceneModelConfig& entry : scene->models) {

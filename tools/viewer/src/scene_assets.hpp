@@ -58,6 +58,7 @@ class SceneAssets {
 
   const std::string& scene_name() const noexcept { return scene_name_; }
   const std::filesystem::path& scene_path() const noexcept { return scene_path_; }
+  double period_s() const noexcept { return period_s_; }  // the haptic loop's period
   std::span<ModelAssets> models() noexcept { return models_; }
   std::span<const ModelAssets> models() const noexcept { return models_; }
   std::span<const InstrumentAssets> instruments() const noexcept { return instruments_; }
@@ -70,6 +71,7 @@ class SceneAssets {
   SceneAssets() = default;
   std::string scene_name_;
   std::filesystem::path scene_path_;
+  double period_s_ = 0.0;
   std::optional<core::Arena> arena_;
   std::vector<ModelAssets> models_;
   std::vector<InstrumentAssets> instruments_;

@@ -140,6 +140,7 @@ std::string ViewFrameEncoder::scene_json() const {
   nlohmann::json scene;
   scene["scene"] = assets_.scene_name();
   scene["frame_format"] = "TVF1";
+  scene["period_s"] = assets_.period_s();
   scene["reconstruction"] = reconstruction_ == Reconstruction::browser ? "browser" : "viewer";
   nlohmann::json models = nlohmann::json::array();
   const std::span<const ModelAssets> all = assets_.models();

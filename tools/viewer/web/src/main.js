@@ -207,8 +207,10 @@ function fmt(x, digits = 1) { return typeof x === 'number' && isFinite(x) ? x.to
 function updatePanel(latestCycleNs) {
   const hops = stats.hops.slice(-60);
   const mean = (k) => hops.length ? hops.reduce((s, h) => s + h[k], 0) / hops.length : NaN;
+  const sessionS = sceneInfo ? stats.lastCycle * sceneInfo.period_s : NaN;
   let html = row('cycle', stats.lastCycle) +
-    row('time', latestCycleNs ? new Date(latestCycleNs / 1e6).toISOString().substring(11, 23) : '–') +
+    row('session time', isFinite(sessionS) ? `${Math.floor(sessionS / 60)}:${(sessionS % 60).toFixed(1).padStart(4, '0')}` : '–') +
+    row('wall time (UTC)', latestCycleNs ? new Date(latestCycleNs / 1e6).toISOString().substring(11, 23) : '–') +
     row('frames drawn /s', fmt(stats.drawnRate)) + row('display /s', fmt(stats.rafRate)) +
     row('latency cycle→drawn ms', fmt(mean(5))) + row('frame bytes', stats.frameBytes);
   const metrics = session.metrics;
