@@ -209,6 +209,8 @@ core::Expected<TensorModel> TensorModel::create(const TensorModelData& data,
   if (!slot_contact) return std::move(slot_contact).error();
   auto corrected = arena.allocate_array<float>(unknowns, "tensor corrected constraints");
   if (!corrected) return std::move(corrected).error();
+  auto imposed = arena.allocate_array<float>(unknowns, "tensor imposed displacements");
+  if (!imposed) return std::move(imposed).error();
   auto force = arena.allocate_array<float>(unknowns, "tensor contact forces");
   if (!force) return std::move(force).error();
   auto field = arena.allocate_array<float>(3 * responses, "tensor displacement field");
@@ -217,6 +219,7 @@ core::Expected<TensorModel> TensorModel::create(const TensorModelData& data,
   model.rhs_ = rhs.value();
   model.slot_contact_ = slot_contact.value();
   model.slot_corrected_ = corrected.value();
+  model.slot_imposed_ = imposed.value();
   model.slot_force_ = force.value();
   model.field_ = field.value();
   std::fill(model.field_.begin(), model.field_.end(), 0.0F);
@@ -341,6 +344,7 @@ core::Status TensorModel::solve(std::span<const TensorContact> contacts) noexcep
     total_along += along;
     total_across += force - along;
     Eigen::Map<Vec3>(slot_corrected_.data() + 3 * i) = corrected;
+    Eigen::Map<Vec3>(slot_imposed_.data() + 3 * i) = contacts[i].displacement_m;
     Eigen::Map<Vec3>(slot_force_.data() + 3 * i) = force;
   }
   if (nonlinear_ && direction_.squaredNorm() > 0.0F) {

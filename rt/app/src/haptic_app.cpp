@@ -99,6 +99,10 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
   stages.forces.emplace(std::move(*forces));
   stages.write.emplace(hal, app->safety_, scene.device.digital, app->stats_);
   stages.publish.emplace(app->safety_, log, telemetry);
+  if (auto published = stages.publish->publish_models(models, scene.source_path.string());
+      !published) {
+    return std::move(published).error();
+  }
   StageRunner& runner = app->runner_;
   bool wired = runner.add(CyclePhase::hal_read, *stages.read) &&
                runner.add(CyclePhase::kinematics, *stages.kinematics);

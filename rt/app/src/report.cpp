@@ -173,6 +173,24 @@ nlohmann::json models_json(const RunResult& r) {
   return models;
 }
 
+// The telemetry stream to the graphics host (null when [telemetry] is off).
+nlohmann::json telemetry_stream_json(const RunResult& r) {
+  if (!r.telemetry_stream) return nullptr;
+  const TelemetrySenderStats& t = *r.telemetry_stream;
+  return {{"destination", t.destination},
+          {"rate_hz", t.rate_hz},
+          {"stream_id", t.stream_id},
+          {"frames_sent", t.frames_sent},
+          {"send_errors", t.send_errors},
+          {"refused", t.refused},
+          {"buffer_full", t.buffer_full},
+          {"other_errors", t.other_errors},
+          {"last_errno", t.last_errno},
+          {"encode_errors", t.encode_errors},
+          {"stale_skipped", t.stale_skipped},
+          {"frame_bytes", {{"min", t.bytes_min}, {"p50", t.bytes_p50}, {"max", t.bytes_max}}}};
+}
+
 // The USB link as the host saw it (backend usb only; null otherwise).
 nlohmann::json usb_json(const RunResult& r) {
   if (!r.usb) return nullptr;
@@ -327,6 +345,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"log_records_dropped", r.log_records_dropped},
       {"can", can_json(r)},
       {"usb", usb_json(r)},
+      {"telemetry", telemetry_stream_json(r)},
   };
 }
 
@@ -467,6 +486,12 @@ std::string report_summary(const RunResult& r) {
         << static_cast<double>(u.round_trip_p99_ns) * 1e-3 << " us, max "
         << static_cast<double>(u.round_trip_max_ns) * 1e-3 << " us over " << u.round_trips
         << "; faults: " << (r.usb_faults.empty() ? "none" : r.usb_faults) << "\n";
+  }
+  if (r.telemetry_stream) {
+    const TelemetrySenderStats& t = *r.telemetry_stream;
+    out << "  telemetry: " << t.frames_sent << " frames to " << t.destination << " at "
+        << t.rate_hz << " Hz, " << t.send_errors << " send errors (" << t.refused
+        << " refused), frame bytes p50 " << t.bytes_p50 << " max " << t.bytes_max << "\n";
   }
   return out.str();
 }

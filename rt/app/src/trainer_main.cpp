@@ -58,6 +58,39 @@ void point_latest_at(const std::filesystem::path& report) {
 
 }  // namespace
 
+namespace {
+
+// --telemetry ADDRESS:PORT ([ADDRESS]:PORT for IPv6); the address itself is checked when the
+// sender opens its socket.
+trainer::core::Expected<trainer::config::TelemetryConfig> parse_telemetry_destination(
+    const std::string& text, std::uint32_t rate_hz) {
+  const auto bad = [&] {
+    return trainer::core::make_error("--telemetry " + text +
+                                     ": expected ADDRESS:PORT, e.g. 127.0.0.1:47800 or "
+                                     "[::1]:47800, port 1..65535");
+  };
+  const std::size_t colon = text.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 >= text.size()) return bad();
+  std::string address = text.substr(0, colon);
+  if (address.front() == '[') {
+    if (address.size() < 3 || address.back() != ']') return bad();
+    address = address.substr(1, address.size() - 2);
+  }
+  const std::string port_text = text.substr(colon + 1);
+  if (port_text.find_first_not_of("0123456789") != std::string::npos || port_text.size() > 5)
+    return bad();
+  const unsigned long port = std::stoul(port_text);
+  if (port < 1 || port > 65535) return bad();
+  trainer::config::TelemetryConfig config;
+  config.enabled = true;
+  config.address = address;
+  config.port = static_cast<std::uint16_t>(port);
+  config.rate_hz = rate_hz;
+  return config;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   CLI::App cli{"Laparoscopic haptic trainer controller: runs a scene's haptic loop"};
   trainer::app::RunOptions options;
@@ -122,6 +155,15 @@ int main(int argc, char** argv) {
   bool check_rt = false;
   bool json = false;
   std::string rt_check_root = "/";
+  std::string telemetry_to;
+  std::uint32_t telemetry_rate_hz = 60;
+  auto* telemetry_opt = cli.add_option(
+      "--telemetry", telemetry_to,
+      "Stream telemetry to ADDRESS:PORT (numeric IPv4, or [IPv6]:PORT), replacing the device "
+      "file's [telemetry] (docs/telemetry.md)");
+  cli.add_option("--telemetry-rate", telemetry_rate_hz, "With --telemetry: frames per second")
+      ->check(CLI::Range(30, 120))
+      ->capture_default_str();
   cli.add_flag("--check-rt", check_rt,
                "Run the RT self-check of this machine for the scene (and device file) and exit: "
                "0 no fatal failure, 1 a check listed in loop.rt_check_fatal failed");
@@ -148,6 +190,14 @@ int main(int argc, char** argv) {
   options.arm = !no_arm;
   options.apply_rt_settings = !no_rt;
   options.rt_check_root = rt_check_root;
+  if (*telemetry_opt) {
+    auto stream = parse_telemetry_destination(telemetry_to, telemetry_rate_hz);
+    if (!stream) {
+      std::cerr << "trainer: " << stream.error().message << "\n";
+      return 2;
+    }
+    options.telemetry = *stream;
+  }
 
   if (check_rt) {
     trainer::config::LoadOptions load_options;

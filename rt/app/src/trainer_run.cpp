@@ -98,6 +98,7 @@ struct RunSetup {
   std::unique_ptr<core::TripleBuffer<TelemetrySnapshot>> telemetry =
       std::make_unique<core::TripleBuffer<TelemetrySnapshot>>();
   std::unique_ptr<HapticApp> app;
+  std::unique_ptr<TelemetrySender> telemetry_sender;  // [telemetry] enabled only
   std::uint64_t cycles = 0;
   std::string backend;  // "sim" or the device file's hardware backend
   std::vector<appliance::RtCheckResult> rt_check;
@@ -178,6 +179,12 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
       HapticApp::create(cfg, binding, *setup.arena, *setup.log, *setup.telemetry, *setup.clock);
   if (!app) return fail(std::move(app).error());
   setup.app = std::move(*app);
+  const config::TelemetryConfig& stream = options.telemetry ? *options.telemetry : cfg.device.telemetry;
+  if (stream.enabled) {
+    auto sender = TelemetrySender::create(stream, cfg.device.source_path.string());
+    if (!sender) return fail(std::move(sender).error());
+    setup.telemetry_sender = std::move(*sender);
+  }
   // The trainee script plays on the simulated bench only; on hardware a person moves the
   // handles and the run lasts --cycles/--seconds or until a stop signal.
   const double script_duration_s = setup.sim != nullptr ? setup.sim->script_duration_s() : 0.0;
@@ -251,23 +258,41 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
   });
   if (!thread) return std::move(thread).error();
   ServiceSupervision service(options.arm, scene.name, scene.loop.period_ns);
+  TelemetrySender* sender = setup.telemetry_sender.get();
+  bool have_snapshot = false;
+  const auto monotonic_now_ns = [] {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  };
   while (!finished.load(std::memory_order_acquire)) {
-    if (signals.wait_for(kSupervisorPeriodNs) != 0) {
+    // With a telemetry stream this thread wakes at its rate (30–120 Hz), else at ~30 Hz.
+    const std::int64_t wait_ns =
+        sender != nullptr
+            ? std::clamp<std::int64_t>(sender->ns_until_due(monotonic_now_ns()), 0,
+                                       kSupervisorPeriodNs)
+            : kSupervisorPeriodNs;
+    if (signals.wait_for(wait_ns) != 0) {
       result.stopped_by_signal = true;
       stop.store(true, std::memory_order_release);
     }
     drain_log(*setup.log, options);
     if (setup.telemetry->update()) {
+      have_snapshot = true;
       service.observe(setup.telemetry->latest());
       if (options.on_telemetry) options.on_telemetry(setup.telemetry->latest());
     }
-    service.tick(finished.load(std::memory_order_acquire),
-                 std::chrono::duration_cast<std::chrono::nanoseconds>(
-                     std::chrono::steady_clock::now().time_since_epoch())
-                     .count());
+    if (sender != nullptr && have_snapshot)
+      sender->send_if_due(setup.telemetry->latest(), monotonic_now_ns());
+    service.tick(finished.load(std::memory_order_acquire), monotonic_now_ns());
   }
   service.stopping(result.stopped_by_signal);
   thread->join();
+  if (sender != nullptr) {
+    if (setup.telemetry->update()) have_snapshot = true;
+    if (have_snapshot) sender->send_final(setup.telemetry->latest(), monotonic_now_ns());
+    result.telemetry_stream = sender->stats();
+  }
   result.rt.cpu_dma_latency_us = cpu_latency.latency_us();
   if (!cpu_latency.warning().empty()) result.rt.warnings.push_back(cpu_latency.warning());
   result.loop = periodic.stats();

@@ -8,6 +8,9 @@
 #include <string_view>
 #include <utility>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
 #include "table_reader.hpp"
 #include "trainer/config/device.hpp"
 #include "value_text.hpp"
@@ -565,6 +568,39 @@ void check_gpio_wiring(const DeviceConfig& config, TableReader& digital_table, E
   }
 }
 
+// [telemetry] (docs/config.md, docs/telemetry.md): optional; when present and enabled the
+// destination is required. The address must be numeric (inet_pton): the appliance does no
+// name lookups at run time.
+constexpr IntRange kTelemetryPortRange{1, 65'535};
+constexpr IntRange kTelemetryRateRangeHz{30, 120};
+
+TelemetryConfig read_telemetry(TableReader& table) {
+  TelemetryConfig telemetry;
+  telemetry.enabled = table.optional_bool("enabled", true);
+  telemetry.rate_hz = static_cast<std::uint32_t>(
+      table.optional_int("rate_hz", 60, kTelemetryRateRangeHz, "frames per second"));
+  // Disabled, the destination may be left out (the table then only keeps the setting).
+  if (!telemetry.enabled && !table.has("address") && !table.has("port")) {
+    table.finish();
+    return telemetry;
+  }
+  telemetry.address =
+      table.required_string("address", "the graphics host's numeric IPv4 or IPv6 address");
+  telemetry.port = static_cast<std::uint16_t>(
+      table.required_int("port", kTelemetryPortRange, "UDP port"));
+  if (!telemetry.address.empty()) {
+    in_addr v4{};
+    in6_addr v6{};
+    if (inet_pton(AF_INET, telemetry.address.c_str(), &v4) != 1 &&
+        inet_pton(AF_INET6, telemetry.address.c_str(), &v6) != 1) {
+      table.fail_value("address", ": expected a numeric IPv4 (192.168.1.20) or IPv6 (fd00::20) "
+                                  "address; host names are not looked up");
+    }
+  }
+  table.finish();
+  return telemetry;
+}
+
 DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   DeviceConfig config;
   config.source_path = parsed.file.absolute_path;
@@ -611,6 +647,11 @@ DeviceConfig read_device(const detail::ParsedFile& parsed, ErrorSink& errors) {
   if (usb) {
     usb_table.emplace(root.required_table("usb"));
     config.usb = read_usb(*usb_table, errors);
+  }
+
+  if (root.has("telemetry")) {
+    TableReader telemetry = root.required_table("telemetry");
+    config.telemetry = read_telemetry(telemetry);
   }
 
   auto instruments = root.array_of_tables("instrument", 1, kMaxDeviceInstruments, "instruments");

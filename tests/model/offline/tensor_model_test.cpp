@@ -281,6 +281,9 @@ TEST(TensorModel, RefusesBadContactSetsAndKeepsThePreviousSolution) {
     EXPECT_EQ(model.solve(contacts).code(), code);
     EXPECT_EQ(model.contact_count(), 1U);
     EXPECT_EQ(model.contact_force(0), force);
+    // The accepted contacts as imposed (what the telemetry stream sends) are kept too.
+    EXPECT_EQ(model.contact_node(0), top);
+    EXPECT_EQ(model.imposed_displacement(0), Vec3(0.0F, 0.0F, -0.001F));
   }
   // Releasing every contact zeroes the field.
   ASSERT_TRUE(model.solve({}).is_ok());

@@ -238,6 +238,13 @@ TEST(ModalModel, StaticCorrectionAddsResidualResponseOfTheSteppedForces) {
     ASSERT_TRUE(model->step().is_ok());
     model->clear_forces();  // the correction belongs to the forces of the last step
   }
+  // What a host rebuilding the field from the telemetry stream reads: the last step's loads.
+  ASSERT_EQ(corrected.stepped_load_count(), 2U);
+  EXPECT_EQ(corrected.stepped_load_node(0), 1U);
+  EXPECT_EQ(corrected.stepped_load_force(0), force_a);
+  EXPECT_EQ(corrected.stepped_load_node(1), 3U);
+  EXPECT_EQ(corrected.stepped_load_force(1), force_b);
+  EXPECT_EQ(corrected.stepped_load_force(2), Vec3::Zero());
   const std::uint32_t rows = 3 * synthetic.node_count;
   for (std::uint32_t node = 0; node < synthetic.node_count; ++node) {
     for (std::uint32_t axis = 0; axis < 3; ++axis) {

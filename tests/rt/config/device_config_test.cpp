@@ -410,7 +410,7 @@ const DeviceErrorCase kDeviceErrorCases[] = {
      "gear_ratio = 15.0\ncapstan_radius_m = 0.01",
      "unknown key 'instrument[0].pitch.capstan_radius_m' (known: ", 1},
     {"unknown_table", "[digital]", "[digital]\n[digitals]\nx = 1",
-     "unknown key 'digitals' (known: device, digital, instrument); did you mean 'digital'?", 1},
+     "unknown key 'digitals' (known: device, digital, telemetry, instrument); did you mean 'digital'?", 1},
 };
 
 INSTANTIATE_TEST_SUITE_P(EveryMistake, DeviceErrorTest, ::testing::ValuesIn(kDeviceErrorCases),
@@ -701,6 +701,88 @@ TEST_F(DeviceFileTest, UsbCarriesAtMostSixteenChannelsSoThreeInstruments) {
   expect_contains(message, "instrument[3].name = \"extra1\" is instrument 4: backend \"usb\" "
                            "carries one channel per joint and at most 16 channels: expected at "
                            "most 3 instruments");
+}
+
+// ---------------------------------------------------------------- [telemetry]
+
+TEST(TelemetryDeviceKeys, AbsentTableMeansNoStream) {
+  const auto device = load_device(repo_path("config/devices/sim.toml"));
+  ASSERT_TRUE(device) << device.error().message;
+  EXPECT_FALSE(device->telemetry.enabled);
+}
+
+TEST_F(DeviceFileTest, TelemetryTableLoadsWithItsDefaults) {
+  const std::string sim = read_text(repo_path("config/devices/sim.toml"));
+  const auto device = load_device(
+      write("sim.toml", sim + "\n[telemetry]\naddress = \"192.168.7.20\"\nport = 47800\n"));
+  ASSERT_TRUE(device) << device.error().message;
+  EXPECT_TRUE(device->telemetry.enabled);
+  EXPECT_EQ(device->telemetry.address, "192.168.7.20");
+  EXPECT_EQ(device->telemetry.port, 47800);
+  EXPECT_EQ(device->telemetry.rate_hz, 60U);
+  const auto v6 = load_device(write(
+      "sim6.toml", sim + "\n[telemetry]\naddress = \"fd00::20\"\nport = 9\nrate_hz = 120\n"));
+  ASSERT_TRUE(v6) << v6.error().message;
+  EXPECT_EQ(v6->telemetry.address, "fd00::20");
+  EXPECT_EQ(v6->telemetry.rate_hz, 120U);
+}
+
+TEST_F(DeviceFileTest, ADisabledTelemetryTableNeedsNoDestination) {
+  const std::string sim = read_text(repo_path("config/devices/sim.toml"));
+  const auto device = load_device(write("sim.toml", sim + "\n[telemetry]\nenabled = false\n"));
+  ASSERT_TRUE(device) << device.error().message;
+  EXPECT_FALSE(device->telemetry.enabled);
+}
+
+struct TelemetryErrorCase {
+  const char* name;
+  const char* table;     // appended to config/devices/sim.toml after "[telemetry]"
+  const char* key_line;  // the line the message must name (its text)
+  const char* expected;
+};
+
+std::ostream& operator<<(std::ostream& stream, const TelemetryErrorCase& error_case) {
+  return stream << error_case.name;
+}
+
+class TelemetryErrorTest : public ConfigFileTest,
+                           public ::testing::WithParamInterface<TelemetryErrorCase> {};
+
+TEST_P(TelemetryErrorTest, MessageNamesFileLineKeyValueAndExpectation) {
+  const TelemetryErrorCase& error_case = GetParam();
+  const std::string text = read_text(repo_path("config/devices/sim.toml")) + "\n[telemetry]\n" +
+                           error_case.table;
+  const auto path = write("devices/sim.toml", text);
+  const std::string message = error_message(load_device(path));
+  expect_contains(message, path.string() + ":" + std::to_string(line_of(text, error_case.key_line)) +
+                               ": " + error_case.expected);
+}
+
+const TelemetryErrorCase kTelemetryErrorCases[] = {
+    {"rate_too_low", "address = \"127.0.0.1\"\nport = 47800\nrate_hz = 10\n", "rate_hz = 10",
+     "telemetry.rate_hz = 10 is out of range: expected 30 to 120 (frames per second)"},
+    {"rate_too_high", "address = \"127.0.0.1\"\nport = 47800\nrate_hz = 1000\n", "rate_hz = 1000",
+     "telemetry.rate_hz = 1000 is out of range: expected 30 to 120"},
+    {"port_zero", "address = \"127.0.0.1\"\nport = 0\n", "port = 0",
+     "telemetry.port = 0 is out of range: expected 1 to 65535 (UDP port)"},
+    {"port_too_large", "address = \"127.0.0.1\"\nport = 70000\n", "port = 70000",
+     "telemetry.port = 70000 is out of range: expected 1 to 65535"},
+    {"host_name", "address = \"viewer.local\"\nport = 47800\n", "address = \"viewer.local\"",
+     "telemetry.address = \"viewer.local\": expected a numeric IPv4 (192.168.1.20) or IPv6 "
+     "(fd00::20) address; host names are not looked up"},
+    {"address_and_port_written_together", "address = \"127.0.0.1:47800\"\nport = 47800\n",
+     "address = \"127.0.0.1:47800\"", "telemetry.address = \"127.0.0.1:47800\": expected a numeric"},
+    {"unknown_key", "address = \"127.0.0.1\"\nport = 47800\nrate = 60\n", "rate = 60",
+     "unknown key 'telemetry.rate'"},
+};
+
+INSTANTIATE_TEST_SUITE_P(EveryMistake, TelemetryErrorTest, ::testing::ValuesIn(kTelemetryErrorCases),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
+TEST_F(DeviceFileTest, AnEnabledTelemetryTableNeedsItsDestination) {
+  const std::string sim = read_text(repo_path("config/devices/sim.toml"));
+  const std::string message = error_message(load_device(write("sim.toml", sim + "\n[telemetry]\nport = 47800\n")));
+  expect_contains(message, "telemetry.address");
 }
 
 }  // namespace

@@ -137,6 +137,19 @@ class BasicModalModel {
   bool static_correction() const noexcept { return static_correction_; }
   std::size_t applied_load_count() const noexcept { return pending_count_; }
   std::span<const double> modal_displacement() const noexcept { return {x_.data(), active_modes_}; }
+  // The nodal forces of the last step (what displacement() and reconstruct() add the static
+  // correction of): count, then each load's node and force (N). Another thread rebuilding the
+  // field from published modal coordinates needs them too (the telemetry stream).
+  std::size_t stepped_load_count() const noexcept { return stepped_count_; }
+  std::uint32_t stepped_load_node(std::size_t index) const noexcept {
+    return index < stepped_count_ ? stepped_loads_[index].node : 0;
+  }
+  Vector3 stepped_load_force(std::size_t index) const noexcept {
+    if (index >= stepped_count_) return Vector3::Zero();
+    const NodeLoad& load = stepped_loads_[index];
+    return Vector3(static_cast<Scalar>(load.force_n[0]), static_cast<Scalar>(load.force_n[1]),
+                   static_cast<Scalar>(load.force_n[2]));
+  }
   std::span<const double> modal_velocity() const noexcept { return {v_.data(), active_modes_}; }
   std::span<const double> modal_acceleration() const noexcept { return {a_.data(), active_modes_}; }
 

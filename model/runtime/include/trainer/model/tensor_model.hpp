@@ -125,6 +125,16 @@ class TensorModel {
   Vec3 contact_force(std::size_t index) const noexcept;
   Vec3 total_force() const noexcept;
   std::size_t contact_count() const noexcept { return contact_count_; }
+  // The contacts of the last accepted solve as they were imposed: node and displacement (m,
+  // from rest). solve() on them again reproduces the solution (a graphics host rebuilding the
+  // field from the telemetry stream does exactly that).
+  std::uint32_t contact_node(std::size_t index) const noexcept {
+    return index < contact_count_ ? data_.contact_nodes[slot_contact_[index]] : 0;
+  }
+  Vec3 imposed_displacement(std::size_t index) const noexcept {
+    if (index >= contact_count_) return Vec3::Zero();
+    return {slot_imposed_[3 * index], slot_imposed_[3 * index + 1], slot_imposed_[3 * index + 2]};
+  }
 
   // Displacement of one stored node from the last solve, computed on demand in O(m); zero for
   // a node without a stored response (fixed nodes, or interior nodes of a boundary-only
@@ -165,6 +175,7 @@ class TensorModel {
   // The last accepted solve.
   std::span<std::uint32_t> slot_contact_;   // M: contact index per slot
   std::span<float> slot_corrected_;         // 3M: d_j
+  std::span<float> slot_imposed_;           // 3M: u*_j as imposed
   std::span<float> slot_force_;             // 3M: f_j, non-linear map applied
   Vec3 direction_ = Vec3::Zero();           // unit summed imposed displacement (0 if none)
   std::span<float> field_;                  // 3r

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "trainer/app/haptic_app.hpp"
+#include "trainer/app/telemetry_sender.hpp"
 #include "trainer/appliance/rt_check.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
@@ -53,6 +54,8 @@ struct RunOptions {
   // The check runs when RT settings are applied in real time, before the device is created.
   std::filesystem::path rt_check_root = "/";
   bool arm = true;                // issue the explicit reset that arms the safety chain
+  // Replaces the device file's [telemetry] for this run (trainer --telemetry ADDR:PORT).
+  std::optional<config::TelemetryConfig> telemetry;
   // Called from the supervisor thread about 30 times a second with the newest snapshot.
   std::function<void(const TelemetrySnapshot&)> on_telemetry;
   // Receives formatted log lines drained from the RT log ring (default: stderr).
@@ -96,6 +99,8 @@ struct RunResult {
   std::string can_faults;
   std::optional<hal::libusb::UsbDiagnostics> usb;  // backend usb only
   std::string usb_faults;
+  // The telemetry stream's counters ([telemetry] enabled only).
+  std::optional<TelemetrySenderStats> telemetry_stream;
 };
 
 core::Expected<RunResult> run_trainer(const RunOptions& options);

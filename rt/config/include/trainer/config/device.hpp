@@ -162,6 +162,15 @@ struct UsbConfig {
   std::int64_t event_poll_ns = 0;          // event thread's longest sleep without events
 };
 
+// The telemetry stream to the graphics host ([telemetry], docs/telemetry.md): where this
+// installation's graphics host listens and how often to send. Absent table = off.
+struct TelemetryConfig {
+  bool enabled = false;
+  std::string address;     // numeric IPv4 or IPv6 address (no name lookup on the appliance)
+  std::uint16_t port = 0;  // UDP destination port
+  std::uint32_t rate_hz = 60;  // frames per second, 30..120
+};
+
 struct DeviceConfig {
   std::filesystem::path source_path;  // absolute, lexically normal path of the file loaded
   std::string name;
@@ -173,6 +182,7 @@ struct DeviceConfig {
   DigitalIo digital_io = DigitalIo::backend;  // [device] digital_io
   GpioConfig gpio;                    // [gpio], digital_io = "gpio" only
   UsbConfig usb;                      // [usb], backend "usb" only
+  TelemetryConfig telemetry;          // [telemetry], optional
 };
 
 // Loads and validates a device file. On failure the message names the file, the line (when
