@@ -5,9 +5,11 @@
 //
 //   node viewer_page.mjs --modules DIR --url URL [--chromium PATH] [--screenshot FILE]
 //                        [--model I] [--gap-ms MS] [--attempts N] [--seconds S] [--json FILE]
-//                        [--expect-fault S]  (a fault banner must show within S seconds)
+//                        [--expect-deformation M] [--screenshot-cycle C]
+//                        [--fault-command CMD] [--expect-fault S]  (then a fault banner must show within S s)
 // Exit: 0 pass, 1 fail, 77 chromium absent (ctest SKIP_RETURN_CODE).
 import { createRequire } from 'node:module';
+import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 
@@ -85,7 +87,24 @@ try {
     }, first, second);
     if (cycleSecond !== cycleFirst && changed.count >= 0.002 * changed.total) break;
   }
+  const result = { rect: clip, cycles: [cycleFirst, cycleSecond], changedPixels: changed.count, pixels: changed.total };
+  if (args['expect-deformation']) {
+    // The tissue model really deformed: the largest displacement drawn (not just pixels that
+    // changed because an instrument moved across it).
+    const peak = await page.evaluate((i) => window.viewerStats.peakDisplacementM[i] || 0, modelIndex);
+    result.peakDisplacementM = peak;
+    if (!(peak >= Number(args['expect-deformation']))) fail(`model ${modelIndex} deformed by at most ${peak} m`);
+  }
+  if (args['screenshot-cycle']) {
+    await page.waitForFunction((c) => window.viewerStats.lastCycle >= c, { timeout: 20000, polling: 50 },
+                               Number(args['screenshot-cycle']));
+  }
   if (args.screenshot) await page.screenshot({ path: args.screenshot });
+  if (args['fault-command']) {
+    // A stream that latches a fault (e.g. the trainer not armed) is started now.
+    const child = spawn('/bin/sh', ['-c', args['fault-command']], { stdio: 'ignore' });
+    child.on('error', (e) => fail(`fault command: ${e}`));
+  }
   if (args['expect-fault']) {
     // The stream latches a fault: the banner must show it.
     try {
@@ -96,7 +115,6 @@ try {
       fail(`no fault banner within ${args['expect-fault']} s`);
     }
   }
-  const result = { rect: clip, cycles: [cycleFirst, cycleSecond], changedPixels: changed.count, pixels: changed.total };
   if (cycleSecond === cycleFirst) fail(`no new frame between the screenshots (cycle ${cycleFirst})`);
   if (changed.count < 0.002 * changed.total) fail(`the model's screen area did not change: ${changed.count} of ${changed.total} pixels`);
   if (consoleErrors.length) fail(`console errors: ${consoleErrors.join(' | ')}`);

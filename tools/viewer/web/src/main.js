@@ -11,6 +11,7 @@ const stats = {
   lastCycle: 0, lastSequence: 0, faults: 0, frameBytes: 0, error: '',
   // Per drawn frame, ms: [cycle→sent, sent→viewer, viewer→ws, ws→page, page→drawn, cycle→drawn]
   hops: [], rebuildMs: [], drawnRate: 0, rafRate: 0,
+  peakDisplacementM: [],  // per model: the largest |u| component drawn so far (tissue models)
 };
 window.viewerStats = stats;
 const nowMs = () => performance.timeOrigin + performance.now();  // CLOCK_REALTIME-based, ms
@@ -158,7 +159,12 @@ function draw(frame) {
     }
     const position = entry.mesh.geometry.attributes.position;
     const out = position.array, rest = entry.rest;
-    for (let k = 0; k < out.length; ++k) out[k] = rest[k] + displacement[k];
+    let peak = stats.peakDisplacementM[i] || 0;
+    for (let k = 0; k < out.length; ++k) {
+      out[k] = rest[k] + displacement[k];
+      peak = Math.max(peak, Math.abs(displacement[k]));
+    }
+    stats.peakDisplacementM[i] = peak;
     position.needsUpdate = true;
     entry.mesh.geometry.computeVertexNormals();
   }
@@ -172,7 +178,7 @@ function draw(frame) {
   }
   // Contact force arrows: the force on the tissue, drawn ending at the contact point.
   while (arrows.length < frame.contacts.length) {
-    const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0x36c26b, 0.006, 0.004);
+    const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0x36c26b, 0.003, 0.0015);
     scene.add(arrow);
     arrows.push(arrow);
   }
@@ -186,7 +192,7 @@ function draw(frame) {
     const length = Math.max(0.004, magnitude * forceScale);
     arrow.position.copy(v(c, 0)).addScaledVector(direction, -length);
     arrow.setDirection(direction);
-    arrow.setLength(length, Math.min(0.006, 0.4 * length), 0.004);
+    arrow.setLength(length, Math.min(0.003, 0.4 * length), 0.0015);
   });
   const banner = document.getElementById('banner');
   if (frame.faults !== 0 || stats.error) {
