@@ -126,7 +126,7 @@ core::Expected<std::unique_ptr<UdpSource>> UdpSource::open(const SceneAssets& as
   }
   if (!valid) {
     return core::make_error("--udp " + endpoint +
-                            ": expected IPv4address:port, e.g. 0.0.0.0:47800");
+                            ": expected IPV4-ADDRESS:PORT, e.g. 0.0.0.0:47800");
   }
   address.sin_port = htons(static_cast<std::uint16_t>(port));
   std::unique_ptr<UdpSource> source(new UdpSource(assets));
