@@ -27,7 +27,9 @@ core::Expected<bool> TestPatternSource::next(SceneFrame& frame, std::chrono::mil
   const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   const double phase = 2.0 * std::numbers::pi * t;
   frame.sequence = count_;
-  frame.cycle = count_;
+  // The haptic cycle this instant would be, so the page's session time runs at wall speed.
+  frame.cycle =
+      assets_.period_s() > 0.0 ? static_cast<std::uint64_t>(t / assets_.period_s()) : count_;
   frame.times.cycle_ns = realtime_now_ns();
   frame.times.sent_ns = frame.times.cycle_ns;
   frame.times.received_ns = frame.times.cycle_ns;
