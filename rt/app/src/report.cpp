@@ -179,6 +179,7 @@ nlohmann::json telemetry_stream_json(const RunResult& r) {
   const TelemetrySenderStats& t = *r.telemetry_stream;
   return {{"destination", t.destination},
           {"rate_hz", t.rate_hz},
+          {"source_port", t.source_port},
           {"stream_id", t.stream_id},
           {"frames_sent", t.frames_sent},
           {"send_errors", t.send_errors},
@@ -188,6 +189,8 @@ nlohmann::json telemetry_stream_json(const RunResult& r) {
           {"last_errno", t.last_errno},
           {"encode_errors", t.encode_errors},
           {"stale_skipped", t.stale_skipped},
+          {"trimmed", t.trimmed},
+          {"over_budget", t.over_budget},
           {"frame_bytes", {{"min", t.bytes_min}, {"p50", t.bytes_p50}, {"max", t.bytes_max}}}};
 }
 

@@ -53,8 +53,28 @@ core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
   // Nothing is ever read from this socket: keep what the kernel may queue for it small.
   const int smallest = 1;  // the kernel rounds it up to its minimum
   (void)setsockopt(sender->fd_, SOL_SOCKET, SO_RCVBUF, &smallest, sizeof smallest);
+  if (config.source_port != 0) {
+    sockaddr_storage local{};
+    local.ss_family = destination.ss_family;
+    if (destination.ss_family == AF_INET) {
+      reinterpret_cast<sockaddr_in*>(&local)->sin_port = htons(config.source_port);
+    } else {
+      reinterpret_cast<sockaddr_in6*>(&local)->sin6_port = htons(config.source_port);
+    }
+    if (bind(sender->fd_, reinterpret_cast<const sockaddr*>(&local), length) != 0) {
+      return core::make_error(where + "source_port = " + std::to_string(config.source_port) +
+                              ": " + std::strerror(errno));
+    }
+  }
   if (connect(sender->fd_, reinterpret_cast<const sockaddr*>(&destination), length) != 0) {
     return core::make_error(where + "destination " + shown + ": " + std::strerror(errno));
+  }
+  sockaddr_storage bound{};
+  socklen_t bound_length = sizeof bound;
+  if (getsockname(sender->fd_, reinterpret_cast<sockaddr*>(&bound), &bound_length) == 0) {
+    sender->stats_.source_port =
+        ntohs(bound.ss_family == AF_INET ? reinterpret_cast<sockaddr_in*>(&bound)->sin_port
+                                         : reinterpret_cast<sockaddr_in6*>(&bound)->sin6_port);
   }
   sender->period_ns_ = 1'000'000'000 / static_cast<std::int64_t>(config.rate_hz);
   sender->frame_ = std::make_unique<telemetry::Frame>();
@@ -118,6 +138,60 @@ void TelemetrySender::fill_frame(const TelemetrySnapshot& snapshot,
   std::copy_n(snapshot.contacts.begin(), frame.contact_count, frame.contacts.begin());
 }
 
+namespace {
+
+float sender_squared_norm(const std::array<float, 3>& v) noexcept {
+  return v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+}
+
+}  // namespace
+
+bool TelemetrySender::trim_to_budget(telemetry::Frame& frame, std::size_t budget_bytes) noexcept {
+  if (telemetry::encoded_size(frame) <= budget_bytes) return false;
+  // Largest first, so that trimming drops from the end.
+  std::sort(frame.contacts.begin(), frame.contacts.begin() + frame.contact_count,
+            [](const telemetry::ContactPoint& a, const telemetry::ContactPoint& b) {
+              return sender_squared_norm(a.force_n) > sender_squared_norm(b.force_n);
+            });
+  for (std::size_t m = 0; m < frame.model_count; ++m) {
+    telemetry::ModelState& model = frame.models[m];
+    std::sort(model.loads.begin(), model.loads.begin() + model.load_count,
+              [](const telemetry::NodeLoad& a, const telemetry::NodeLoad& b) {
+                return sender_squared_norm(a.force_n) > sender_squared_norm(b.force_n);
+              });
+  }
+  constexpr std::uint32_t kContactsKept = 4;
+  const auto drop_smallest_load = [&frame]() noexcept {
+    // The smallest last load over the models (each model's loads are sorted).
+    std::size_t pick = frame.model_count;
+    float smallest = 0.0F;
+    for (std::size_t m = 0; m < frame.model_count; ++m) {
+      const telemetry::ModelState& model = frame.models[m];
+      if (model.load_count == 0) continue;
+      const float n = sender_squared_norm(model.loads[model.load_count - 1].force_n);
+      if (pick == frame.model_count || n < smallest) {
+        pick = m;
+        smallest = n;
+      }
+    }
+    if (pick == frame.model_count) return false;
+    --frame.models[pick].load_count;
+    frame.models[pick].flags |= telemetry::kModalLoadsTruncated;
+    return true;
+  };
+  while (telemetry::encoded_size(frame) > budget_bytes) {
+    if (frame.contact_count > kContactsKept) {
+      --frame.contact_count;
+      frame.flags |= telemetry::kFlagContactsTruncated;
+    } else if (!drop_smallest_load()) {
+      if (frame.contact_count == 0) break;
+      --frame.contact_count;
+      frame.flags |= telemetry::kFlagContactsTruncated;
+    }
+  }
+  return true;
+}
+
 void TelemetrySender::send_snapshot(const TelemetrySnapshot& snapshot, std::int64_t now_ns,
                                     std::uint32_t extra_flags) noexcept {
   telemetry::Frame& frame = *frame_;
@@ -127,6 +201,8 @@ void TelemetrySender::send_snapshot(const TelemetrySnapshot& snapshot, std::int6
   frame.sequence = sequence_;
   frame.send_time_ns = now_ns;
   frame.send_wall_ns = sender_clock_ns(CLOCK_REALTIME);
+  if (trim_to_budget(frame, kFrameBudgetBytes)) ++stats_.trimmed;
+  if (telemetry::encoded_size(frame) > kFrameBudgetBytes) ++stats_.over_budget;
   const telemetry::EncodeResult encoded = telemetry::encode(frame, datagram_);
   if (!encoded.ok()) {
     ++stats_.encode_errors;

@@ -164,6 +164,10 @@ int main(int argc, char** argv) {
   cli.add_option("--telemetry-rate", telemetry_rate_hz, "With --telemetry: frames per second")
       ->check(CLI::Range(30, 120))
       ->capture_default_str();
+  std::uint16_t telemetry_source_port = 0;
+  cli.add_option("--telemetry-source-port", telemetry_source_port,
+                 "With --telemetry: local UDP port the frames leave from (0 = any)")
+      ->capture_default_str();
   cli.add_flag("--check-rt", check_rt,
                "Run the RT self-check of this machine for the scene (and device file) and exit: "
                "0 no fatal failure, 1 a check listed in loop.rt_check_fatal failed");
@@ -197,6 +201,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     options.telemetry = *stream;
+    options.telemetry->source_port = telemetry_source_port;
   }
 
   if (check_rt) {

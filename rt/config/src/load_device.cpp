@@ -573,6 +573,7 @@ void check_gpio_wiring(const DeviceConfig& config, TableReader& digital_table, E
 // name lookups at run time.
 constexpr IntRange kTelemetryPortRange{1, 65'535};
 constexpr IntRange kTelemetryRateRangeHz{30, 120};
+constexpr IntRange kTelemetrySourcePortRange{0, 65'535};
 
 TelemetryConfig read_telemetry(TableReader& table) {
   TelemetryConfig telemetry;
@@ -588,6 +589,8 @@ TelemetryConfig read_telemetry(TableReader& table) {
       table.required_string("address", "the graphics host's numeric IPv4 or IPv6 address");
   telemetry.port = static_cast<std::uint16_t>(
       table.required_int("port", kTelemetryPortRange, "UDP port"));
+  telemetry.source_port = static_cast<std::uint16_t>(table.optional_int(
+      "source_port", 0, kTelemetrySourcePortRange, "local UDP port, 0 = any"));
   if (!telemetry.address.empty()) {
     in_addr v4{};
     in6_addr v6{};

@@ -231,5 +231,40 @@ TEST(TelemetrySender, BadDestinationsAreRefusedNamingTheFile) {
   }
 }
 
+// The cbd scene's worst case the format allows (64 loads on the duct, 16 contact points)
+// is 1,858 bytes: trimmed to 1 KiB, the largest loads and contact points kept.
+TEST(TelemetrySender, AFrameAboveTheBudgetKeepsItsLargestLoadsAndContacts) {
+  auto frame = std::make_unique<telemetry::Frame>();
+  frame->model_count = 2;
+  telemetry::ModelState& duct = frame->models[0];
+  duct.kind = telemetry::ModelKind::modal;
+  duct.flags = telemetry::kModalStaticCorrection;
+  duct.mode_count = 40;
+  duct.load_count = 64;
+  for (std::uint32_t k = 0; k < 64; ++k)  // force k+1 N on node k, in scrambled order
+    duct.loads[(k * 37) % 64] = {k, {0.0F, 0.0F, static_cast<float>(k + 1)}};
+  telemetry::ModelState& catheter = frame->models[1];
+  catheter.kind = telemetry::ModelKind::catheter;
+  catheter.scene_index = 1;
+  catheter.particle_count = 11;
+  frame->instrument_count = 2;
+  frame->contact_count = 16;
+  for (std::uint32_t k = 0; k < 16; ++k)
+    frame->contacts[(k * 5) % 16] = {0, telemetry::kNoModel, telemetry::ContactKind::shaft,
+                                     {0.0F, 0.0F, 0.0F}, {static_cast<float>(k + 1), 0.0F, 0.0F}};
+  ASSERT_EQ(telemetry::encoded_size(*frame), 1858U);
+  ASSERT_TRUE(TelemetrySender::trim_to_budget(*frame, TelemetrySender::kFrameBudgetBytes));
+  EXPECT_LE(telemetry::encoded_size(*frame), TelemetrySender::kFrameBudgetBytes);
+  EXPECT_GT(telemetry::encoded_size(*frame), TelemetrySender::kFrameBudgetBytes - 14);
+  ASSERT_EQ(frame->contact_count, 4U);  // the rest of the budget went to loads
+  for (std::uint32_t k = 0; k < 4; ++k) EXPECT_EQ(frame->contacts[k].force_n[0], 16.0F - static_cast<float>(k));
+  ASSERT_GT(duct.load_count, 0U);
+  for (std::uint32_t k = 0; k < duct.load_count; ++k) EXPECT_EQ(duct.loads[k].node, 63 - k);
+  EXPECT_NE(duct.flags & telemetry::kModalLoadsTruncated, 0);
+  EXPECT_NE(frame->flags & telemetry::kFlagContactsTruncated, 0U);
+  // A frame within the budget is left alone.
+  EXPECT_FALSE(TelemetrySender::trim_to_budget(*frame, TelemetrySender::kFrameBudgetBytes));
+}
+
 }  // namespace
 }  // namespace trainer::app

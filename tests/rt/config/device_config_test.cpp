@@ -720,6 +720,7 @@ TEST_F(DeviceFileTest, TelemetryTableLoadsWithItsDefaults) {
   EXPECT_EQ(device->telemetry.address, "192.168.7.20");
   EXPECT_EQ(device->telemetry.port, 47800);
   EXPECT_EQ(device->telemetry.rate_hz, 60U);
+  EXPECT_EQ(device->telemetry.source_port, 0);
   const auto v6 = load_device(write(
       "sim6.toml", sim + "\n[telemetry]\naddress = \"fd00::20\"\nport = 9\nrate_hz = 120\n"));
   ASSERT_TRUE(v6) << v6.error().message;
@@ -772,6 +773,9 @@ const TelemetryErrorCase kTelemetryErrorCases[] = {
      "(fd00::20) address; host names are not looked up"},
     {"address_and_port_written_together", "address = \"127.0.0.1:47800\"\nport = 47800\n",
      "address = \"127.0.0.1:47800\"", "telemetry.address = \"127.0.0.1:47800\": expected a numeric"},
+    {"source_port_too_large", "address = \"127.0.0.1\"\nport = 47800\nsource_port = 65536\n",
+     "source_port = 65536",
+     "telemetry.source_port = 65536 is out of range: expected 0 to 65535 (local UDP port, 0 = any)"},
     {"unknown_key", "address = \"127.0.0.1\"\nport = 47800\nrate = 60\n", "rate = 60",
      "unknown key 'telemetry.rate'"},
 };

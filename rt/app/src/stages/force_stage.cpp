@@ -51,6 +51,8 @@ void ForceStage::render_instrument(std::size_t index, CycleFrame& frame) noexcep
   const Vec3& tip_velocity = state.tip_velocity_m_per_s;
 
   Vec3 requested = state.model_force_n;
+  Vec3 object_force = Vec3::Zero();  // the rigid objects' share (telemetry contact point)
+  bool object_contact = false;
   bool in_contact = state.model_contact;
   float depth = state.model_contact ? state.model_indentation_m : 0.0F;
   for (const ObjectState& object : objects_) {
@@ -60,8 +62,10 @@ void ForceStage::render_instrument(std::size_t index, CycleFrame& frame) noexcep
                                             : object.sphere.contact(pose.tip_m, tip_velocity);
     if (contact.in_contact) {
       in_contact = true;
+      object_contact = true;
       depth = std::max(depth, contact.depth_m);
       requested += contact.force_n;
+      object_force += contact.force_n;
     }
   }
 
@@ -99,6 +103,8 @@ void ForceStage::render_instrument(std::size_t index, CycleFrame& frame) noexcep
   out.force_n = {force.x(), force.y(), force.z()};
   out.joint_efforts = efforts;
   out.in_contact = in_contact;
+  out.object_contact = object_contact;
+  out.object_force_n = {object_force.x(), object_force.y(), object_force.z()};
 }
 
 void ForceStage::run(CycleFrame& frame) noexcept {

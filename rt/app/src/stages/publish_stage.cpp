@@ -145,6 +145,12 @@ void PublishStage::publish_instruments(const CycleFrame& frame,
                          publish_vec3(pose.tip_m), publish_vec3(on_tissue)},
                         on_tissue.squaredNorm());
     }
+    if (out.object_contact) {  // a rigid object (wall, sphere): not a scene model
+      const std::array<float, 3>& f = out.object_force_n;
+      contacts.add({index, telemetry::kNoModel, telemetry::ContactKind::tip,
+                    publish_vec3(pose.tip_m), {-f[0], -f[1], -f[2]}},
+                   f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+    }
     for (const model::ToolForce& force : instrument.point_forces()) {
       const Eigen::Vector3f at = kinematics::TrocarKinematics::position(
           pose, {kinematics_segment_of(force.segment), force.along_m});

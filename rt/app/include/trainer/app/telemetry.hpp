@@ -19,6 +19,9 @@ struct InstrumentTelemetry {
   std::array<float, 3> force_n{};        // commanded force on the tool after the safety chain
   std::array<float, 5> joint_efforts{};  // commanded, joint side (N·m, N)
   bool in_contact = false;
+  // Rigid scene objects (walls, spheres) at the tip: their force on the tool (forces stage).
+  bool object_contact = false;
+  std::array<float, 3> object_force_n{};
   // For drawing (publish stage, from the cycle's pose): trainer frame.
   std::array<float, 3> hinge_m{};
   std::array<float, 3> shaft_start_m{};

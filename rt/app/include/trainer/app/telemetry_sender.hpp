@@ -29,6 +29,7 @@ namespace trainer::app {
 struct TelemetrySenderStats {
   std::string destination;  // "address:port" as configured ("[v6]:port" for IPv6)
   std::uint32_t rate_hz = 0;
+  std::uint16_t source_port = 0;  // the local port the frames leave from
   std::uint32_t stream_id = 0;
   std::uint64_t frames_sent = 0;
   std::uint64_t send_errors = 0;      // every failed send(), by kind below
@@ -38,6 +39,8 @@ struct TelemetrySenderStats {
   int last_errno = 0;
   std::uint64_t encode_errors = 0;    // a snapshot that did not encode (never expected)
   std::uint64_t stale_skipped = 0;    // due, but no snapshot newer than the last one sent
+  std::uint64_t trimmed = 0;          // frames cut to the byte budget (loads, contacts dropped)
+  std::uint64_t over_budget = 0;      // frames still above the budget after trimming (sent)
   std::uint32_t bytes_min = 0;
   std::uint32_t bytes_p50 = 0;
   std::uint32_t bytes_max = 0;
@@ -45,6 +48,14 @@ struct TelemetrySenderStats {
 
 class TelemetrySender {
  public:
+  // A frame above this many bytes is trimmed before it is sent: the smallest contact points
+  // beyond the 4 largest go first, then the smallest static-correction loads, then the other
+  // contact points (frame flag / modal flag "truncated" set). 1 KiB: the target for
+  // the cbd scene, and below an Ethernet payload (1,472 bytes), so no frame is fragmented.
+  // Model coordinates, particles and instruments are never dropped: a scene whose frame
+  // is still larger is sent whole and counted in over_budget.
+  static constexpr std::size_t kFrameBudgetBytes = 1024;
+
   // Setup path: opens the socket (non-blocking, connected to config.address:port). Errors
   // name the device file's [telemetry] keys and the system's reason.
   static core::Expected<std::unique_ptr<TelemetrySender>> create(
@@ -64,6 +75,8 @@ class TelemetrySender {
   TelemetrySenderStats stats() const;
   // The snapshot → frame mapping (the frame's header fields from `sequence` and the clocks).
   static void fill_frame(const TelemetrySnapshot& snapshot, telemetry::Frame& frame) noexcept;
+  // Cuts `frame` to `budget_bytes` as described at kFrameBudgetBytes; true if it cut anything.
+  static bool trim_to_budget(telemetry::Frame& frame, std::size_t budget_bytes) noexcept;
 
  private:
   TelemetrySender() = default;

@@ -169,6 +169,7 @@ struct TelemetryConfig {
   std::string address;     // numeric IPv4 or IPv6 address (no name lookup on the appliance)
   std::uint16_t port = 0;  // UDP destination port
   std::uint32_t rate_hz = 60;  // frames per second, 30..120
+  std::uint16_t source_port = 0;  // local UDP port the frames leave from; 0 = any (ephemeral)
 };
 
 struct DeviceConfig {
