@@ -136,8 +136,8 @@ core::Expected<void> SceneAssets::check_checksums(
                               checksum_hex(stream_checksums[i]) + " on the stream, " +
                               checksum_hex(models_[i].checksum) + " in " +
                               models_[i].image_path.string() +
-                              ": the appliance runs another image (rebuild with modelc or copy the "
-                              "appliance's image here)");
+                              ": the appliance runs another image (copy the appliance's image file "
+                              "here: two modelc builds are not byte-identical)");
     }
   }
   return {};
