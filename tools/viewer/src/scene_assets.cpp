@@ -137,7 +137,7 @@ core::Expected<void> SceneAssets::check_checksums(
                               checksum_hex(models_[i].checksum) + " in " +
                               models_[i].image_path.string() +
                               ": the appliance runs another image (copy the appliance's image file "
-                              "here: two modelc builds are not byte-identical)");
+                              "here: a rebuild differs at least in its creation time)");
     }
   }
   return {};
