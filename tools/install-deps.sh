@@ -29,7 +29,15 @@ packages=(
   iproute2               # ip: vcan links in the bench VM's CAN tests
   clang-format clang-tidy
   clang libclang-rt-14-dev   # the fuzz preset: clang++ and its libFuzzer/ASan/UBSan runtimes
+  libcivetweb-dev        # the viewer's HTTP + WebSocket server (tools/viewer)
+  chromium               # headless browser of the viewer's page test (tools/viewer, puppeteer-core)
 )
+# The viewer's page is bundled at build time from npm (three.js, esbuild): Debian's nodejs and
+# npm (18.x and 9.x on Debian 12), unless a node with npm is already installed (e.g.
+# NodeSource's nodejs, which carries its own npm and conflicts with Debian's npm package).
+if ! command -v npm >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
