@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include "trainer/metrics/metrics_report.hpp"
+
 namespace trainer::app {
 
 namespace {
@@ -282,6 +284,23 @@ nlohmann::json can_json(const RunResult& r) {
 
 }  // namespace
 
+namespace {
+
+// The trainee metrics (docs/metrics.md) with the thresholds they were computed with; null when
+// the run computed none.
+nlohmann::json metrics_section_json(const RunResult& r) {
+  if (!r.metrics) return nullptr;
+  std::vector<std::string> model_names;
+  for (const LoadedModelInfo& m : r.models) model_names.push_back(m.name);
+  nlohmann::json section =
+      metrics::metrics_json(*r.metrics, r.metrics_thresholds, r.instrument_names, model_names);
+  section["refused_samples"] = r.metrics_refused_samples;
+  section["dropped_cycles"] = r.recording_dropped_cycles;
+  return section;
+}
+
+}  // namespace
+
 nlohmann::json report_json(const RunResult& r) {
   nlohmann::json fault_counts = nlohmann::json::object();
   for (const auto& [name, count] : r.fault_counts) fault_counts[name] = count;
@@ -353,6 +372,7 @@ nlohmann::json report_json(const RunResult& r) {
                                          {"bytes", r.recording_bytes},
                                          {"dropped_cycles", r.recording_dropped_cycles},
                                          {"error", r.recording_error}}},
+      {"metrics", metrics_section_json(r)},
       {"can", can_json(r)},
       {"usb", usb_json(r)},
       {"telemetry", telemetry_stream_json(r)},
@@ -478,6 +498,10 @@ std::string report_summary(const RunResult& r) {
     for (const auto& [name, count] : r.fault_counts) out << " " << name << "×" << count;
   }
   out << "\n  outputs zeroed at exit: " << (r.outputs_zeroed_at_exit ? "yes" : "NO") << "\n";
+  if (r.metrics) {
+    std::istringstream lines(metrics::metrics_summary(*r.metrics, r.instrument_names));
+    for (std::string line; std::getline(lines, line);) out << "  " << line << "\n";
+  }
   if (r.can) {
     const hal::socketcan::CanDiagnostics& c = *r.can;
     out << "  can: " << c.sync_sent << " SYNCs, " << c.tpdo_received << " TPDOs, "

@@ -9,6 +9,7 @@
 #include "trainer/core/clock.hpp"
 #include "trainer/core/log_ring.hpp"
 #include "trainer/core/triple_buffer.hpp"
+#include "trainer/record/cycle_sample.hpp"
 
 #ifndef TRAINER_GIT_DESCRIBE
 #define TRAINER_GIT_DESCRIBE "unknown"
@@ -57,6 +58,24 @@ record::SessionInfo session_info(const config::SceneConfig& scene,
   return info;
 }
 
+metrics::SessionSetup metrics_setup(const config::SceneConfig& scene) {
+  metrics::SessionSetup setup;
+  setup.thresholds = scene.metrics;
+  setup.period_ns = scene.loop.period_ns;
+  setup.instrument_count = static_cast<std::uint32_t>(scene.instruments.size());
+  for (const config::SceneModelConfig& entry : scene.models) {
+    if (entry.definition.kind == config::ModelKind::catheter && entry.insertion) {
+      setup.insertion_target_depth_m = entry.insertion->target_depth_m;
+      break;
+    }
+  }
+  return setup;
+}
+
+std::unique_ptr<SessionRecorder> SessionRecorder::metrics_only() {
+  return std::unique_ptr<SessionRecorder>(new SessionRecorder());
+}
+
 core::Expected<std::unique_ptr<SessionRecorder>> SessionRecorder::open(
     const std::filesystem::path& path, const record::SessionInfo& session) {
   std::unique_ptr<SessionRecorder> recorder(new SessionRecorder());
@@ -69,7 +88,8 @@ core::Expected<std::unique_ptr<SessionRecorder>> SessionRecorder::open(
 void SessionRecorder::drain() {
   record::CycleRecord record;
   while (ring_->pop(record)) {
-    if (!error_.empty() || closed_) continue;
+    if (metrics_ && !metrics_->add(record::cycle_sample_of(record))) ++refused_samples_;
+    if (!recording() || !error_.empty() || closed_) continue;
     if (auto added = writer_.add(record); !added) {
       error_ = added.error().message;
       continue;
@@ -85,7 +105,7 @@ void SessionRecorder::close() {
   drain();
   if (closed_) return;
   closed_ = true;
-  if (!error_.empty()) return;
+  if (!recording() || !error_.empty()) return;
   if (auto closed = writer_.close(ring_->dropped()); !closed) error_ = closed.error().message;
 }
 
@@ -235,6 +255,13 @@ core::Expected<ReplayResult> replay_recording(
 
   ReplayResult result;
   result.scene_name = scene->name;
+  // The trainee metrics of the replayed cycles (the same as the session's when identical).
+  auto session_metrics = metrics::SessionMetrics::create(metrics_setup(*scene));
+  if (!session_metrics) return std::move(session_metrics).error();
+  result.metrics_thresholds = scene->metrics;
+  for (const config::SceneInstrumentConfig& instrument : scene->instruments)
+    result.instrument_names.push_back(instrument.name);
+  for (const config::SceneModelConfig& entry : scene->models) result.model_names.push_back(entry.name);
   std::uint64_t expected_cycle = 0;
   std::string gap;
   core::LogRecord discarded;
@@ -263,8 +290,10 @@ core::Expected<ReplayResult> replay_recording(
       return false;
     }
     ++result.cycles_replayed;
+    (void)session_metrics->add(record::cycle_sample_of((*taps)->pending()));
     return true;
   });
+  result.metrics = session_metrics->result();
   if (!scanned) return std::move(scanned).error();
   result.complete = scanned->session_end.has_value();
   if (scanned->session_end)

@@ -14,6 +14,7 @@
 #include "trainer/app/report.hpp"
 #include "trainer/app/rt_self_check.hpp"
 #include "trainer/app/session_recording.hpp"
+#include "trainer/metrics/metrics_report.hpp"
 #include "trainer/app/trainer_run.hpp"
 
 namespace {
@@ -216,6 +217,10 @@ int main(int argc, char** argv) {
     }
     std::cout << "replay of " << replay_file << " (scene " << replayed->scene_name
               << "): " << trainer::app::replay_summary(*replayed) << "\n";
+    if (replayed->metrics) {
+      std::cout << trainer::metrics::metrics_summary(*replayed->metrics,
+                                                    replayed->instrument_names);
+    }
     if (!report_file.empty()) {
       nlohmann::json report{
           {"replay", replay_file},
@@ -229,7 +234,13 @@ int main(int argc, char** argv) {
           {"damage", replayed->damage},
           {"complete", replayed->complete},
           {"dropped_cycles", replayed->dropped_cycles},
-          {"summary", trainer::app::replay_summary(*replayed)}};
+          {"summary", trainer::app::replay_summary(*replayed)},
+          {"metrics", replayed->metrics
+                          ? trainer::metrics::metrics_json(*replayed->metrics,
+                                                           replayed->metrics_thresholds,
+                                                           replayed->instrument_names,
+                                                           replayed->model_names)
+                          : nlohmann::json(nullptr)}};
       std::ofstream out(report_file);
       out << report.dump(2) << "\n";
       if (!out) {

@@ -179,12 +179,12 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
   setup.arena.emplace(std::move(*arena));
   HalBinding binding{device.encoders(), device.actuators(), device.digital_inputs(),
                      device.digital_outputs()};
-  if (options.record_file) {
-    auto taps = HalTaps::create(binding, nullptr);
-    if (!taps) return fail(std::move(taps).error());
-    setup.taps = std::move(*taps);
-    binding = setup.taps->binding();
-  }
+  // Every session goes through the HAL taps: their per-cycle records feed the trainee metrics
+  // and, with --record, the recording.
+  auto taps = HalTaps::create(binding, nullptr);
+  if (!taps) return fail(std::move(taps).error());
+  setup.taps = std::move(*taps);
+  binding = setup.taps->binding();
   auto app =
       HapticApp::create(cfg, binding, *setup.arena, *setup.log, *setup.telemetry, *setup.clock);
   if (!app) return fail(std::move(app).error());
@@ -197,10 +197,18 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
                      device.digital_inputs() != nullptr, device.digital_outputs() != nullptr));
     if (!recorder) return fail(std::move(recorder).error());
     setup.recorder = std::move(*recorder);
-    setup.taps->set_ring(&setup.recorder->ring());
-    setup.taps->set_wait_when_full(options.time_source == TimeSource::simulated);
-    setup.app->set_recorder(setup.taps.get());
+  } else {
+    setup.recorder = SessionRecorder::metrics_only();
   }
+  auto session_metrics = metrics::SessionMetrics::create(metrics_setup(cfg));
+  if (!session_metrics) {
+    return fail(core::make_error(cfg.source_path.string() + ": [metrics] " +
+                                 session_metrics.error().message));
+  }
+  setup.recorder->set_metrics(std::move(*session_metrics));
+  setup.taps->set_ring(&setup.recorder->ring());
+  setup.taps->set_wait_when_full(options.time_source == TimeSource::simulated);
+  setup.app->set_recorder(setup.taps.get());
   const config::TelemetryConfig& stream = options.telemetry ? *options.telemetry : cfg.device.telemetry;
   if (stream.enabled) {
     auto sender = TelemetrySender::create(
@@ -404,11 +412,18 @@ core::Expected<RunResult> run_trainer(const RunOptions& options) {
   setup.device->deactivate();
   if (setup.recorder) {
     setup.recorder->close();
-    result.recording_file = setup.recorder->path().string();
-    result.recorded_cycles = setup.recorder->records();
+    if (setup.recorder->recording()) {
+      result.recording_file = setup.recorder->path().string();
+      result.recorded_cycles = setup.recorder->records();
+      result.recording_bytes = setup.recorder->bytes();
+      result.recording_error = setup.recorder->error();
+    }
     result.recording_dropped_cycles = setup.recorder->dropped();
-    result.recording_bytes = setup.recorder->bytes();
-    result.recording_error = setup.recorder->error();
+    if (const auto& session = setup.recorder->session_metrics()) {
+      result.metrics = session->result();
+      result.metrics_thresholds = session->setup().thresholds;
+    }
+    result.metrics_refused_samples = setup.recorder->refused_samples();
   }
   if (!ran) return std::move(ran).error();
   // A bus's drives report their state only in PDOs, which stop with the deactivation: ask them.

@@ -114,6 +114,8 @@ TEST(CatheterScene, RunsWithNoHeapAllocationsOverALongRun) {
   EXPECT_EQ(report["models"][0]["kind"], "catheter");
   EXPECT_EQ(report["models"][0]["substeps_per_period"], 43);
   EXPECT_EQ(report["models"][0]["particle_count"], 21);
+  EXPECT_EQ(report["metrics"]["samples"], kSoakCycles);
+  EXPECT_EQ(report["metrics"]["refused_samples"], 0);
   EXPECT_NE(report_summary(*result).find("43 substeps per 1000.0 us period"), std::string::npos)
       << report_summary(*result);
 }

@@ -52,6 +52,18 @@ for tool in (left, right):
 assert right["contact_cycles"] > 1000, right
 # The right forceps rests on the duct with its jaws as well as its tip (ray-based contact).
 assert right["wall_segment_contact_cycles"] > 100, right
+# The trainee metrics (docs/metrics.md) in the report, from every cycle's record, agree with
+# the report's own statistics: one grasp without a slip, the target reached at the depth the
+# catheter's statistics give, both forceps moved.
+m = run["metrics"]
+assert m["samples"] == run["cycles"] and m["refused_samples"] == 0 and m["dropped_cycles"] == 0, m
+assert m["task"]["completed"] and m["insertion"]["target_reached"], m["task"]
+assert abs(m["insertion"]["max_depth_m"] - insertion["peak_depth_m"]) < 1e-6, (m["insertion"], insertion)
+assert 0 < m["insertion"]["time_to_target_s"] < run["cycles"] * run["period_ns"] * 1e-9, m["insertion"]
+ml, mr = m["instruments"]
+assert ml["name"] == "left" and ml["grasps"] == left["catheter"]["grasps"] and ml["slips"] == 0, ml
+assert ml["path_length_m"] > 0.03 and mr["path_length_m"] > 0.03, (ml, mr)
+assert 0 < mr["peak_force_n"] <= right["peak_force_n"] + 1e-3, (mr, right)
 print(f"cbd insertion: peak depth {insertion['peak_depth_m'] * 1e3:.1f} mm (target "
       f"{insertion['target_depth_m'] * 1e3:.0f} mm), squeeze {left['catheter']['peak_squeeze_n']:.2f} N, "
       f"duct peak {load['peak_force_n']:.3f} N mean {load['mean_force_n']:.3f} N, "

@@ -41,6 +41,12 @@ assert left["contact_cycles"] > 1000, left
 # newton, far below the scene's 8 N limit; zero would mean no contact, above it a blow-up.
 assert 0.05 < left["peak_force_n"] < 3.0, left
 assert run["models"][0]["position_m"] == [-0.0622, 0.0, -0.1063], run["models"][0]
+# The trainee metrics: every cycle sampled, the press on the duct counted as force on tissue
+# (the scene's tissue is the duct: what the tip felt of it is at most the commanded force).
+m = run["metrics"]
+assert m["samples"] == run["cycles"] and m["refused_samples"] == 0, m
+mi = m["instruments"][0]
+assert mi["contact_time_s"] > 1.0 and 0.05 < mi["peak_force_n"] <= left["peak_force_n"] + 1e-3, (mi, left)
 print(f"duct press: {left['contact_cycles']} contact cycles, peak {left['peak_force_n']:.3f} N, "
       f"mean {left['mean_contact_force_n']:.3f} N, no heap, no faults")
 PY

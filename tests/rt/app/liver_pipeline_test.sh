@@ -71,6 +71,13 @@ for r in (run, linear):
     # What the tissue took is what the probe felt (action = reaction, no clamp).
     assert abs(l["peak_force_n"] - p["peak_force_n"]) < 1e-3 * p["peak_force_n"], (l, p)
     assert abs(l["peak_indentation_m"] - p["peak_depth_m"]) < 1e-9, (l, p)
+    # The trainee metrics: the probe's force on the liver is the force it felt (nothing else
+    # touches it), its contact time the contact cycles times the period.
+    m = r["metrics"]
+    assert m["samples"] == r["cycles"] and m["refused_samples"] == 0, m
+    mi = m["instruments"][0]
+    assert abs(mi["peak_force_n"] - p["peak_force_n"]) < 1e-3 * p["peak_force_n"], (mi, p)
+    assert abs(mi["contact_time_s"] - p["contact_cycles"] * r["period_ns"] * 1e-9) < 1e-6, (mi, p)
 assert run["cycles"] == linear["cycles"] >= 15000, (run["cycles"], linear["cycles"])
 # Quasi-non-linear (Cotin §4.3): the colinear force map P(a) = a + 0.5 a^2 + 0.1 a^3 (N) on the
 # linear force. The linear run gives the block's stiffness under the probe; at the non-linear

@@ -65,6 +65,13 @@ TEST(TrainerRun, ReportCarriesTheRequiredFields) {
   EXPECT_EQ(report["cycles"], 2000);
   EXPECT_EQ(report["period_ns"], 1'000'000);
   EXPECT_EQ(report["memory"]["heap_allocations_after_arming"], 0);
+  // The trainee metrics (docs/metrics.md) from every cycle: the tip moved, and the wall is a
+  // rigid object, not tissue, so no force on tissue.
+  ASSERT_TRUE(report["metrics"].is_object());
+  EXPECT_EQ(report["metrics"]["samples"], 2000);
+  EXPECT_EQ(report["metrics"]["refused_samples"], 0);
+  EXPECT_GT(report["metrics"]["instruments"][0]["path_length_m"].get<double>(), 0.0);
+  EXPECT_EQ(report["metrics"]["instruments"][0]["peak_force_n"].get<double>(), 0.0);
   EXPECT_TRUE(report["rt"].contains("preempt_rt"));
   EXPECT_FALSE(report_summary(*result).empty());
 }

@@ -1,7 +1,9 @@
 // The session recording's two ends in the app (docs/recording.md):
-//  * SessionRecorder, non-RT: owns the ring the RT thread's HAL taps push into and the file;
-//    drain() (the supervisor loop, ~30 Hz) writes what the ring holds, close() writes the
-//    end of the file with the count of cycles a full ring dropped;
+//  * SessionRecorder, non-RT: owns the ring the RT thread's HAL taps push into, the file (when
+//    the session is recorded) and the session's trainee metrics (rt/metrics, fed with every
+//    record's derived block, file or not); drain() (the supervisor loop, ~30 Hz) writes what
+//    the ring holds, close() writes the end of the file with the count of cycles a full ring
+//    dropped;
 //  * replay_recording(): reruns the cycle code in simulated time on a recording's inputs and
 //    compares every output and state hash (trainer --replay).
 #pragma once
@@ -18,6 +20,7 @@
 #include "trainer/app/scene_models.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/expected.hpp"
+#include "trainer/metrics/session_metrics.hpp"
 #include "trainer/record/recording.hpp"
 
 namespace trainer::app {
@@ -29,10 +32,24 @@ record::SessionInfo session_info(const config::SceneConfig& scene,
                                  const std::string& time_source, bool digital_inputs,
                                  bool digital_outputs);
 
+// The trainee metrics' setup of a scene (docs/metrics.md): its [metrics] thresholds, loop
+// period, instruments and the catheter's insertion target.
+metrics::SessionSetup metrics_setup(const config::SceneConfig& scene);
+
 class SessionRecorder {
  public:
   static core::Expected<std::unique_ptr<SessionRecorder>> open(const std::filesystem::path& path,
                                                                const record::SessionInfo& session);
+  // No file: the ring is drained into the metrics only (a session run without --record).
+  static std::unique_ptr<SessionRecorder> metrics_only();
+  // Feeds every drained record's derived block to `metrics` from now on.
+  void set_metrics(metrics::SessionMetrics metrics) { metrics_.emplace(std::move(metrics)); }
+  const std::optional<metrics::SessionMetrics>& session_metrics() const noexcept {
+    return metrics_;
+  }
+  // Samples the metrics refused (non-finite, instrument count; docs/metrics.md).
+  std::uint64_t refused_samples() const noexcept { return refused_samples_; }
+  bool recording() const noexcept { return !path_.empty(); }
 
   RecordRing& ring() noexcept { return *ring_; }
   // Writes every record in the ring. The first write error stops the recording (the run goes
@@ -55,6 +72,8 @@ class SessionRecorder {
   std::string error_;
   std::uint64_t unflushed_ = 0;
   bool closed_ = false;
+  std::optional<metrics::SessionMetrics> metrics_;
+  std::uint64_t refused_samples_ = 0;
 };
 
 struct ReplayResult {
@@ -66,6 +85,12 @@ struct ReplayResult {
   std::string damage;      // the file's damage (replay went up to it), or empty
   bool complete = false;   // the session closed the file (session_end present)
   std::uint64_t dropped_cycles = 0;
+  // The trainee metrics of the replayed (identical) cycles, with the scene's thresholds and
+  // names for the report section (docs/metrics.md).
+  std::optional<metrics::SessionResult> metrics;
+  metrics::MetricsThresholds metrics_thresholds;
+  std::vector<std::string> instrument_names;
+  std::vector<std::string> model_names;
 };
 
 // `change` (tests): called on each recorded record before it is replayed, to alter inputs.

@@ -20,6 +20,7 @@
 #include "trainer/hal_libusb/usb_device.hpp"
 #include "trainer/hal_socketcan/canopen_device.hpp"
 #include "trainer/loop/rt_settings.hpp"
+#include "trainer/metrics/session_metrics.hpp"
 
 namespace trainer::app {
 
@@ -101,6 +102,12 @@ struct RunResult {
   std::uint64_t recording_dropped_cycles = 0;
   std::uint64_t recording_bytes = 0;
   std::string recording_error;
+  // The trainee metrics of the session (docs/metrics.md), from every cycle's record (a cycle a
+  // full ring dropped, recording_dropped_cycles, is missing from them too), with the scene's
+  // thresholds; samples the metrics refused (non-finite values).
+  std::optional<metrics::SessionResult> metrics;
+  metrics::MetricsThresholds metrics_thresholds;
+  std::uint64_t metrics_refused_samples = 0;
   double wall_time_s = 0.0;
   std::vector<std::string> instrument_names;
   std::vector<LoadedModelInfo> models;
