@@ -16,11 +16,15 @@ constexpr std::size_t kParticleBytes = 12;
 constexpr std::size_t kInstrumentBytes = 1 + 4 + 5 * 12;
 constexpr std::size_t kContactsFixedBytes = 1;
 constexpr std::size_t kContactBytes = 1 + 1 + 1 + 12 + 12;
+constexpr std::size_t kMetricsFixedBytes = 1 + 6 * 4 + 1;  // flags, six f32, instrument count
+constexpr std::size_t kInstrumentMetricsBytes = 5 * 4 + 3 * 2;
 constexpr std::size_t kCrcOffset = 8;
 
 constexpr std::uint8_t kKnownModalFlags = kModalStaticCorrection | kModalLoadsTruncated;
 constexpr std::uint8_t kKnownInstrumentFlags = kInstrumentTissueContact | kInstrumentGrasping |
                                                kInstrumentWallContact | kInstrumentCatheterContact;
+constexpr std::uint8_t kKnownMetricsFlags =
+    kMetricsTaskStarted | kMetricsTaskCompleted | kMetricsInsertionGoal | kMetricsTargetReached;
 constexpr std::uint32_t kKnownFrameFlags =
     kFlagNonFiniteReplaced | kFlagContactsTruncated | kFlagRunEnded;
 
@@ -112,6 +116,8 @@ const char* check_frame_for_encoding(const Frame& frame) noexcept {
   if (frame.model_count > kMaxModels) return "more models than kMaxModels";
   if (frame.instrument_count > kMaxInstruments) return "more instruments than kMaxInstruments";
   if (frame.contact_count > kMaxContacts) return "more contacts than kMaxContacts";
+  if (frame.has_metrics && frame.metrics.instrument_count > kMaxInstruments)
+    return "more metrics instruments than kMaxInstruments";
   int previous = -1;
   for (std::size_t i = 0; i < frame.model_count; ++i) {
     const ModelState& m = frame.models[i];
@@ -154,6 +160,9 @@ std::size_t encoded_size(const Frame& frame) noexcept {
   bytes += frame.instrument_count * (kSectionHeaderBytes + kInstrumentBytes);
   if (frame.contact_count > 0)
     bytes += kSectionHeaderBytes + kContactsFixedBytes + kContactBytes * frame.contact_count;
+  if (frame.has_metrics)
+    bytes += kSectionHeaderBytes + kMetricsFixedBytes +
+             kInstrumentMetricsBytes * frame.metrics.instrument_count;
   return bytes;
 }
 
@@ -232,6 +241,30 @@ EncodeResult encode(const Frame& frame, std::span<std::byte> out) noexcept {
       w.u8(static_cast<std::uint8_t>(c.kind));
       w.vec3(c.point_m);
       w.vec3(c.force_n);
+    }
+  }
+  if (frame.has_metrics) {
+    const SessionMetrics& m = frame.metrics;
+    write_section_header(w, SectionType::metrics, 0,
+                         kMetricsFixedBytes + kInstrumentMetricsBytes * m.instrument_count);
+    w.u8(m.flags);
+    w.f32(m.session_time_s);
+    w.f32(m.task_time_s);
+    w.f32(m.time_above_safe_s);
+    w.f32(m.damage_impulse_n_s);
+    w.f32(m.insertion_depth_m);
+    w.f32(m.time_to_target_s);
+    w.u8(m.instrument_count);
+    for (std::size_t i = 0; i < m.instrument_count; ++i) {
+      const InstrumentMetrics& t = m.instruments[i];
+      w.f32(t.path_length_m);
+      w.f32(t.idle_time_s);
+      w.f32(t.peak_force_n);
+      w.f32(t.mean_contact_force_n);
+      w.f32(t.time_above_safe_s);
+      w.u16(t.movements);
+      w.u16(t.grasps);
+      w.u16(t.slips);
     }
   }
   if (w.replaced_non_finite()) w.patch_u32(flags_at, frame.flags | kFlagNonFiniteReplaced);
@@ -384,6 +417,40 @@ DecodeResult decode_contacts(WireReader& r, std::size_t body_at, Frame& out) noe
   return {};
 }
 
+DecodeResult decode_metrics(WireReader& r, std::size_t body_at, bool newer_minor,
+                            SessionMetrics& m) noexcept {
+  m.flags = r.u8();
+  m.session_time_s = r.f32();
+  m.task_time_s = r.f32();
+  m.time_above_safe_s = r.f32();
+  m.damage_impulse_n_s = r.f32();
+  m.insertion_depth_m = r.f32();
+  m.time_to_target_s = r.f32();
+  const std::uint8_t count = r.u8();
+  if (r.failed()) return fail(DecodeError::bad_section, body_at, "metrics section shorter than its fixed fields");
+  if ((m.flags & ~kKnownMetricsFlags) != 0) {
+    if (!newer_minor) return fail(DecodeError::bad_value, body_at, "metrics flags");
+    m.flags &= kKnownMetricsFlags;
+  }
+  if (count > kMaxInstruments)
+    return fail(DecodeError::capacity_exceeded, body_at + kMetricsFixedBytes - 1, "metrics instrument count");
+  if (r.remaining() < kInstrumentMetricsBytes * count)
+    return fail(DecodeError::bad_section, body_at, "metrics section shorter than its count");
+  m.instrument_count = count;
+  for (std::size_t i = 0; i < count; ++i) {
+    InstrumentMetrics& t = m.instruments[i];
+    t.path_length_m = r.f32();
+    t.idle_time_s = r.f32();
+    t.peak_force_n = r.f32();
+    t.mean_contact_force_n = r.f32();
+    t.time_above_safe_s = r.f32();
+    t.movements = r.u16();
+    t.grasps = r.u16();
+    t.slips = r.u16();
+  }
+  return {};
+}
+
 }  // namespace
 
 const char* to_string(DecodeError error) noexcept {
@@ -434,6 +501,7 @@ DecodeResult decode(std::span<const std::byte> bytes, Frame& out) noexcept {
   out.model_count = 0;
   out.instrument_count = 0;
   out.contact_count = 0;
+  out.has_metrics = false;
 
   bool has_contacts = false;
   int last_model = -1;
@@ -503,12 +571,25 @@ DecodeResult decode(std::span<const std::byte> bytes, Frame& out) noexcept {
         if (!result.ok()) return result;
         break;
       }
+      case SectionType::metrics: {
+        if (out.has_metrics || index != 0)
+          return fail(DecodeError::bad_index, pos, "metrics section repeated or index not 0");
+        out.metrics = SessionMetrics{};
+        result = decode_metrics(r, body_at, newer_minor, out.metrics);
+        if (!result.ok()) return result;
+        result = finish_body(r, body_at, newer_minor, "metrics section");
+        if (!result.ok()) return result;
+        out.has_metrics = true;
+        break;
+      }
       default:
         if (!newer_minor) return fail(DecodeError::bad_section, pos, "unknown section type");
         break;  // a newer minor version's section: skipped
     }
     pos = body_at + length;
   }
+  if (out.has_metrics && out.metrics.instrument_count > out.instrument_count)
+    return fail(DecodeError::bad_index, size, "metrics name more instruments than the frame has");
   for (std::size_t k = 0; k < out.contact_count; ++k) {
     if (out.contacts[k].instrument >= out.instrument_count)
       return fail(DecodeError::bad_index, size, "contact names an instrument the frame lacks");

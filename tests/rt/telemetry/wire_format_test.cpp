@@ -106,6 +106,8 @@ void fix_length_and_crc(Bytes& b) {
 
 DecodeResult decode_bytes(const Bytes& b, Frame& out) { return decode(b, out); }
 
+void set_u8(Bytes& b, std::size_t at, std::uint8_t v) { b[at] = std::byte{v}; }
+
 void expect_same(const Frame& a, const Frame& b) {
   EXPECT_EQ(a.stream_id, b.stream_id);
   EXPECT_EQ(a.sequence, b.sequence);
@@ -158,6 +160,49 @@ void expect_same(const Frame& a, const Frame& b) {
     EXPECT_EQ(a.contacts[i].point_m, b.contacts[i].point_m);
     EXPECT_EQ(a.contacts[i].force_n, b.contacts[i].force_n);
   }
+  ASSERT_EQ(a.has_metrics, b.has_metrics);
+  if (a.has_metrics) {
+    const SessionMetrics& x = a.metrics;
+    const SessionMetrics& y = b.metrics;
+    EXPECT_EQ(x.flags, y.flags);
+    EXPECT_EQ(x.session_time_s, y.session_time_s);
+    EXPECT_EQ(x.task_time_s, y.task_time_s);
+    EXPECT_EQ(x.time_above_safe_s, y.time_above_safe_s);
+    EXPECT_EQ(x.damage_impulse_n_s, y.damage_impulse_n_s);
+    EXPECT_EQ(x.insertion_depth_m, y.insertion_depth_m);
+    EXPECT_EQ(x.time_to_target_s, y.time_to_target_s);
+    ASSERT_EQ(x.instrument_count, y.instrument_count);
+    for (std::size_t i = 0; i < x.instrument_count; ++i) {
+      const InstrumentMetrics& p = x.instruments[i];
+      const InstrumentMetrics& q = y.instruments[i];
+      EXPECT_EQ(p.path_length_m, q.path_length_m);
+      EXPECT_EQ(p.idle_time_s, q.idle_time_s);
+      EXPECT_EQ(p.peak_force_n, q.peak_force_n);
+      EXPECT_EQ(p.mean_contact_force_n, q.mean_contact_force_n);
+      EXPECT_EQ(p.time_above_safe_s, q.time_above_safe_s);
+      EXPECT_EQ(p.movements, q.movements);
+      EXPECT_EQ(p.grasps, q.grasps);
+      EXPECT_EQ(p.slips, q.slips);
+    }
+  }
+}
+
+// The sample frame with the session metrics section (since 1.1).
+std::unique_ptr<Frame> sample_frame_with_metrics() {
+  auto frame = sample_frame();
+  frame->has_metrics = true;
+  SessionMetrics& m = frame->metrics;
+  m.flags = kMetricsTaskStarted | kMetricsInsertionGoal | kMetricsTargetReached;
+  m.session_time_s = 6.5F;
+  m.task_time_s = 6.25F;
+  m.time_above_safe_s = 0.027F;
+  m.damage_impulse_n_s = 0.0F;
+  m.insertion_depth_m = 0.0119F;
+  m.time_to_target_s = 6.095F;
+  m.instrument_count = 2;
+  m.instruments[0] = {0.075F, 3.49F, 0.44F, 0.43F, 0.0F, 2, 1, 0};
+  m.instruments[1] = {0.076F, 3.64F, 1.52F, 0.23F, 0.027F, 2, 0, 0};
+  return frame;
 }
 
 TEST(TelemetryWireFormat, RoundTripKeepsEveryField) {
@@ -177,6 +222,52 @@ TEST(TelemetryWireFormat, SizeIsTheDocumentedSum) {
                                (4 + 10 + 12 * 11) + 2 * (4 + 65) + (4 + 1 + 27 * 3);
   EXPECT_EQ(encoded_size(*frame), expected);
   EXPECT_EQ(encode_to_bytes(*frame).size(), expected);
+}
+
+// 1.1: the metrics section, 4 + 26 + 26 n bytes, round-trips and its malformations are refused.
+TEST(TelemetryWireFormat, TheMetricsSectionRoundTripsAtItsDocumentedSize) {
+  const auto frame = sample_frame_with_metrics();
+  const Bytes bytes = encode_to_bytes(*frame);
+  EXPECT_EQ(bytes.size(), encoded_size(*sample_frame()) + 4 + 26 + 26 * 2);
+  auto decoded = std::make_unique<Frame>();
+  const DecodeResult r = decode_bytes(bytes, *decoded);
+  ASSERT_TRUE(r.ok()) << to_string(r.error) << " at " << r.offset << ": " << r.detail;
+  expect_same(*frame, *decoded);
+  const std::size_t at = encoded_size(*sample_frame());  // the metrics section header
+  ASSERT_EQ(std::to_integer<int>(bytes[at]), 18);
+  struct Case {
+    const char* name;
+    DecodeError expected;
+    std::size_t offset;
+    std::uint32_t value;
+    int width;  // bytes written at `offset`
+  };
+  const Case cases[] = {
+      {"unknown metrics flag", DecodeError::bad_value, at + 4, 0x80, 1},
+      {"metrics instrument count beyond capacity", DecodeError::capacity_exceeded, at + 4 + 25, 5, 1},
+      {"metrics instrument count beyond the body", DecodeError::bad_section, at + 4 + 25, 3, 1},
+      {"NaN session time", DecodeError::non_finite, at + 4 + 1, 0x7FC00000U, 4},
+      {"metrics index not 0", DecodeError::bad_index, at + 1, 1, 1},
+  };
+  for (const Case& c : cases) {
+    Bytes b = bytes;
+    if (c.width == 1) set_u8(b, c.offset, static_cast<std::uint8_t>(c.value));
+    else write_u32(b, c.offset, c.value);
+    fix_length_and_crc(b);
+    const DecodeResult bad = decode_bytes(b, *decoded);
+    EXPECT_EQ(bad.error, c.expected) << c.name << ": got " << to_string(bad.error) << " ("
+                                     << bad.detail << ") at " << bad.offset;
+  }
+  // Metrics naming more instruments than the frame carries.
+  auto more = sample_frame_with_metrics();
+  more->metrics.instrument_count = 3;
+  Bytes b = encode_to_bytes(*more);
+  EXPECT_EQ(decode_bytes(b, *decoded).error, DecodeError::bad_index);
+  // A second metrics section.
+  Bytes twice = bytes;
+  twice.insert(twice.end(), bytes.begin() + static_cast<std::ptrdiff_t>(at), bytes.end());
+  fix_length_and_crc(twice);
+  EXPECT_EQ(decode_bytes(twice, *decoded).error, DecodeError::bad_index);
 }
 
 TEST(TelemetryWireFormat, HeaderFieldsAreLittleEndianAtTheDocumentedOffsets) {
@@ -387,7 +478,6 @@ struct Malformation {
   void (*apply)(Bytes&);
 };
 
-void set_u8(Bytes& b, std::size_t at, std::uint8_t v) { b[at] = std::byte{v}; }
 
 const Malformation kMalformations[] = {
     {"magic", DecodeError::bad_magic, [](Bytes& b) { set_u8(b, 0, 'X'); }},

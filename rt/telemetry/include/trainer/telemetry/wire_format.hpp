@@ -1,11 +1,11 @@
-// The telemetry stream's wire format, version 1.0 (docs/telemetry.md has the byte layout): one
+// The telemetry stream's wire format, version 1.1 (docs/telemetry.md has the byte layout): one
 // frame per UDP datagram, sent by the appliance's telemetry thread at 30–120 Hz to the graphics
 // host. A frame carries the state the graphics host needs to draw the scene from its own copy
 // of the model images: per scene model its modal coordinates (plus the loads the static
 // correction needs), a tensor model's imposed contact displacements, a catheter's particle
 // positions; per instrument the shaft and jaws; contact points and forces; latched faults; the
-// cycle counter and timestamps; and each model image's XXH64 so a host whose images differ
-// refuses the stream.
+// cycle counter and timestamps; each model image's XXH64 so a host whose images differ
+// refuses the stream; and (since 1.1) the session's trainee metrics so far.
 //
 // Encoding: explicit little-endian, IEEE-754 binary32 floats, no padding. A 64-byte header
 // (magic "TRTL", major.minor version, total length, CRC-32 of the frame, stream id, sequence,
@@ -38,7 +38,7 @@ namespace trainer::telemetry {
 
 inline constexpr std::array<std::uint8_t, 4> kMagic{'T', 'R', 'T', 'L'};
 inline constexpr std::uint8_t kVersionMajor = 1;
-inline constexpr std::uint8_t kVersionMinor = 0;
+inline constexpr std::uint8_t kVersionMinor = 1;  // 1.1: the session metrics section
 inline constexpr std::size_t kHeaderBytes = 64;
 inline constexpr std::size_t kSectionHeaderBytes = 4;
 
@@ -62,6 +62,7 @@ enum class SectionType : std::uint8_t {
   catheter = 3,     // index: scene model index
   instrument = 16,  // index: instrument index (scene [[instrument]] order)
   contacts = 17,    // index: 0; at most one per frame
+  metrics = 18,     // index: 0; at most one per frame (since 1.1)
 };
 
 // Frame flags (header offset 60).
@@ -148,6 +149,36 @@ struct ContactPoint {
   std::array<float, 3> force_n{};  // on the tissue (the tool feels the opposite), trainer frame
 };
 
+// The session's trainee metrics so far (docs/metrics.md; rt/metrics SessionResult), for the
+// graphics host's session panel. Times in s, lengths in m, forces in N.
+enum MetricsFlag : std::uint8_t {
+  kMetricsTaskStarted = 1U << 0,
+  kMetricsTaskCompleted = 1U << 1,
+  kMetricsInsertionGoal = 1U << 2,   // the scene has an insertion target (depth fields valid)
+  kMetricsTargetReached = 1U << 3,   // time_to_target_s valid
+};
+struct InstrumentMetrics {
+  float path_length_m = 0.0F;
+  float idle_time_s = 0.0F;
+  float peak_force_n = 0.0F;         // force on tissue
+  float mean_contact_force_n = 0.0F;
+  float time_above_safe_s = 0.0F;
+  std::uint16_t movements = 0;
+  std::uint16_t grasps = 0;
+  std::uint16_t slips = 0;
+};
+struct SessionMetrics {
+  std::uint8_t flags = 0;  // MetricsFlag
+  float session_time_s = 0.0F;
+  float task_time_s = 0.0F;
+  float time_above_safe_s = 0.0F;
+  float damage_impulse_n_s = 0.0F;
+  float insertion_depth_m = 0.0F;  // deepest reached
+  float time_to_target_s = 0.0F;
+  std::uint8_t instrument_count = 0;
+  std::array<InstrumentMetrics, kMaxInstruments> instruments{};
+};
+
 struct Frame {
   std::uint32_t stream_id = 0;   // chosen by the sender at start; a new id restarts sequencing
   std::uint64_t sequence = 0;    // +1 per frame sent in a stream
@@ -163,6 +194,8 @@ struct Frame {
   std::array<InstrumentState, kMaxInstruments> instruments{};
   std::uint32_t contact_count = 0;
   std::array<ContactPoint, kMaxContacts> contacts{};
+  bool has_metrics = false;  // the metrics section is present
+  SessionMetrics metrics{};
 };
 
 // ---- Encoding ----
