@@ -101,6 +101,13 @@ void SessionRecorder::drain() {
   }
 }
 
+void SessionRecorder::add_telemetry(std::span<const std::byte> frame, std::int64_t cycle_time_ns,
+                                    std::uint64_t sequence) {
+  if (!error_.empty() || closed_) return;
+  if (auto added = writer_.add_telemetry(frame, cycle_time_ns, sequence); !added)
+    error_ = added.error().message;
+}
+
 void SessionRecorder::close() {
   drain();
   if (closed_) return;

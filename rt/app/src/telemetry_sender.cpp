@@ -23,12 +23,10 @@ std::int64_t sender_clock_ns(clockid_t clock) noexcept {
 
 core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
     const config::TelemetryConfig& config, const std::string& origin) {
+  if (auto rate = check_rate(config, origin); !rate) return std::move(rate).error();
   const std::string where = origin + ": ";
   // Keys as the device file's messages name them, or bare after a command-line option.
   const std::string key = origin.rfind("--", 0) == 0 ? "" : "telemetry.";
-  if (config.rate_hz < 30 || config.rate_hz > 120)
-    return core::make_error(where + key + "rate_hz = " + std::to_string(config.rate_hz) +
-                            ": expected 30 to 120");
   sockaddr_storage destination{};
   socklen_t length = 0;
   std::string shown;
@@ -78,16 +76,37 @@ core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create(
         ntohs(bound.ss_family == AF_INET ? reinterpret_cast<sockaddr_in*>(&bound)->sin_port
                                          : reinterpret_cast<sockaddr_in6*>(&bound)->sin6_port);
   }
-  sender->period_ns_ = 1'000'000'000 / static_cast<std::int64_t>(config.rate_hz);
-  sender->frame_ = std::make_unique<telemetry::Frame>();
-  sender->datagram_.resize(telemetry::kMaxDatagramBytes);
-  sender->size_counts_.assign(kSizeBins, 0);
+  sender->allocate(config.rate_hz);
   sender->stats_.destination = shown;
-  sender->stats_.rate_hz = config.rate_hz;
+  return sender;
+}
+
+core::Expected<void> TelemetrySender::check_rate(const config::TelemetryConfig& config,
+                                                 const std::string& origin) {
+  const std::string key = origin.rfind("--", 0) == 0 ? "" : "telemetry.";
+  if (config.rate_hz < 30 || config.rate_hz > 120)
+    return core::make_error(origin + ": " + key + "rate_hz = " + std::to_string(config.rate_hz) +
+                            ": expected 30 to 120");
+  return {};
+}
+
+void TelemetrySender::allocate(std::uint32_t rate_hz) {
+  period_ns_ = 1'000'000'000 / static_cast<std::int64_t>(rate_hz);
+  frame_ = std::make_unique<telemetry::Frame>();
+  datagram_.resize(telemetry::kMaxDatagramBytes);
+  size_counts_.assign(kSizeBins, 0);
+  stats_.rate_hz = rate_hz;
   const std::int64_t wall = sender_clock_ns(CLOCK_REALTIME);
-  sender->stats_.stream_id = static_cast<std::uint32_t>(
+  stats_.stream_id = static_cast<std::uint32_t>(
       static_cast<std::uint64_t>(wall) ^ (static_cast<std::uint64_t>(wall) >> 32) ^
       (static_cast<std::uint64_t>(getpid()) << 16));
+}
+
+core::Expected<std::unique_ptr<TelemetrySender>> TelemetrySender::create_unsent(
+    const config::TelemetryConfig& config, const std::string& origin) {
+  if (auto rate = check_rate(config, origin); !rate) return std::move(rate).error();
+  std::unique_ptr<TelemetrySender> sender(new TelemetrySender());
+  sender->allocate(config.rate_hz);
   return sender;
 }
 
@@ -212,6 +231,8 @@ void TelemetrySender::send_snapshot(const TelemetrySnapshot& snapshot, std::int6
   }
   ++sequence_;
   last_cycle_sent_ = snapshot.cycle;
+  if (sink_) sink_(std::span<const std::byte>(datagram_.data(), encoded.bytes), frame);
+  if (fd_ < 0) return;
   const ssize_t sent = send(fd_, datagram_.data(), encoded.bytes, MSG_DONTWAIT | MSG_NOSIGNAL);
   if (sent < 0) {
     const int error = errno;

@@ -8,6 +8,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <span>
 
 #include "trainer/app/device_wiring.hpp"
 #include "trainer/app/rt_self_check.hpp"
@@ -102,7 +103,7 @@ struct RunSetup {
   std::unique_ptr<HalTaps> taps;  // --record: before the app that uses them
   std::unique_ptr<SessionRecorder> recorder;
   std::unique_ptr<HapticApp> app;
-  std::unique_ptr<TelemetrySender> telemetry_sender;  // [telemetry] enabled only
+  std::unique_ptr<TelemetrySender> telemetry_sender;  // [telemetry] enabled, or recording
   std::uint64_t cycles = 0;
   std::string backend;  // "sim" or the device file's hardware backend
   std::vector<appliance::RtCheckResult> rt_check;
@@ -215,6 +216,20 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
         stream, options.telemetry ? std::string("--telemetry") : cfg.device.source_path.string());
     if (!sender) return fail(std::move(sender).error());
     setup.telemetry_sender = std::move(*sender);
+  }
+  // A recording keeps the stream's frames (channel 2) at its rate, sent or not.
+  if (setup.recorder) {
+    if (!setup.telemetry_sender) {
+      auto encoder = TelemetrySender::create_unsent(
+          stream, options.telemetry ? std::string("--telemetry") : cfg.device.source_path.string());
+      if (!encoder) return fail(std::move(encoder).error());
+      setup.telemetry_sender = std::move(*encoder);
+    }
+    setup.telemetry_sender->set_frame_sink(
+        [recorder = setup.recorder.get()](std::span<const std::byte> bytes,
+                                          const telemetry::Frame& frame) {
+          recorder->add_telemetry(bytes, frame.cycle_time_ns, frame.sequence);
+        });
   }
   // The trainee script plays on the simulated bench only; on hardware a person moves the
   // handles and the run lasts --cycles/--seconds or until a stop signal.
@@ -339,7 +354,7 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
   if (sender != nullptr) {
     if (setup.telemetry->update()) have_snapshot = true;
     if (have_snapshot) sender->send_final(setup.telemetry->latest(), monotonic_now_ns());
-    result.telemetry_stream = sender->stats();
+    if (sender->sends()) result.telemetry_stream = sender->stats();
   }
   result.rt.cpu_dma_latency_us = cpu_latency.latency_us();
   if (!cpu_latency.warning().empty()) result.rt.warnings.push_back(cpu_latency.warning());

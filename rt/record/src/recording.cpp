@@ -19,6 +19,10 @@ constexpr const char* kCycleSchemaText =
     "(rt/record/include/trainer/record/cycle_record.hpp), little-endian, no padding; "
     "byte offsets in docs/recording.md";
 
+constexpr const char* kTelemetrySchemaText =
+    "trainer telemetry frame: the bytes of one UDP datagram of the telemetry stream "
+    "(rt/telemetry, wire format in docs/telemetry.md), little-endian, versioned by its header";
+
 }  // namespace
 
 core::Expected<void> RecordingWriter::open(const std::filesystem::path& path,
@@ -40,6 +44,15 @@ core::Expected<void> RecordingWriter::open(const std::filesystem::path& path,
                                         {"record_bytes", std::to_string(sizeof(CycleRecord))}});
       !added)
     return added;
+  const std::string telemetry_schema = kTelemetrySchemaText;
+  if (auto added = writer_.add_schema(
+          2, "trainer.TelemetryFrame", kTelemetryEncoding,
+          {reinterpret_cast<const std::uint8_t*>(telemetry_schema.data()), telemetry_schema.size()});
+      !added)
+    return added;
+  if (auto added = writer_.add_channel(kTelemetryChannel, 2, kTelemetryTopic, kTelemetryEncoding, {});
+      !added)
+    return added;
   return writer_.add_metadata("session", session);
 }
 
@@ -49,6 +62,15 @@ core::Expected<void> RecordingWriter::add(const CycleRecord& record) {
                              static_cast<std::uint64_t>(record.wake_ns),
                              static_cast<std::uint64_t>(record.wake_ns),
                              {reinterpret_cast<const std::uint8_t*>(&record), sizeof record});
+}
+
+core::Expected<void> RecordingWriter::add_telemetry(std::span<const std::byte> frame,
+                                                    std::int64_t cycle_time_ns,
+                                                    std::uint64_t sequence) {
+  ++telemetry_frames_;
+  const auto time = static_cast<std::uint64_t>(cycle_time_ns);
+  return writer_.add_message(kTelemetryChannel, static_cast<std::uint32_t>(sequence), time, time,
+                             {reinterpret_cast<const std::uint8_t*>(frame.data()), frame.size()});
 }
 
 core::Expected<void> RecordingWriter::close(std::uint64_t dropped_cycles) {
@@ -65,8 +87,9 @@ namespace {
 
 class CycleVisitor final : public mcap::Visitor {
  public:
-  CycleVisitor(RecordingScan& scan, const std::function<bool(const CycleRecord&)>& on_record)
-      : scan_(scan), on_record_(on_record) {}
+  CycleVisitor(RecordingScan& scan, const std::function<bool(const CycleRecord&)>& on_record,
+               const std::function<bool(const TelemetryMessage&)>& on_telemetry)
+      : scan_(scan), on_record_(on_record), on_telemetry_(on_telemetry) {}
 
   void on_metadata(const std::string& name, const SessionInfo& metadata) override {
     if (name == "session") {
@@ -90,6 +113,10 @@ class CycleVisitor final : public mcap::Visitor {
   }
   bool on_message(const mcap::Message& message) override {
     if (!error_.empty()) return false;
+    if (message.channel == kTelemetryChannel && on_telemetry_) {
+      ++scan_.telemetry_frames;
+      return on_telemetry_(TelemetryMessage{message.log_time, message.sequence, message.data});
+    }
     if (message.channel != kCycleChannel) return true;
     if (!have_session_) {
       error_ = "a cycle record comes before the session metadata";
@@ -104,13 +131,14 @@ class CycleVisitor final : public mcap::Visitor {
     CycleRecord record;
     std::memcpy(&record, message.data.data(), sizeof record);
     ++scan_.records;
-    return on_record_(record);
+    return !on_record_ || on_record_(record);
   }
   const std::string& error() const { return error_; }
 
  private:
   RecordingScan& scan_;
   const std::function<bool(const CycleRecord&)>& on_record_;
+  const std::function<bool(const TelemetryMessage&)>& on_telemetry_;
   bool have_session_ = false;
   std::string error_;
 };
@@ -162,16 +190,22 @@ class MappedFile {
 
 core::Expected<RecordingScan> scan_recording(
     const std::filesystem::path& path, const std::function<bool(const CycleRecord&)>& on_record) {
+  return scan_recording(path, on_record, {});
+}
+
+core::Expected<RecordingScan> scan_recording(
+    const std::filesystem::path& path, const std::function<bool(const CycleRecord&)>& on_record,
+    const std::function<bool(const TelemetryMessage&)>& on_telemetry) {
   // Mapped, not read: an hour at 10 kHz is ~2.4 GB; the scan touches each page once.
   auto mapped = MappedFile::open(path);
   if (!mapped) return std::move(mapped).error();
   RecordingScan scan;
-  CycleVisitor visitor(scan, on_record);
+  CycleVisitor visitor(scan, on_record, on_telemetry);
   auto scanned = mcap::scan(mapped->bytes(), visitor);
   if (!scanned) return core::make_error(path.string() + ": " + scanned.error().message);
   if (!visitor.error().empty()) return core::make_error(path.string() + ": " + visitor.error());
   scan.mcap = *scanned;
-  if (scan.session.empty() && scan.records == 0) {
+  if (scan.session.empty() && scan.records == 0 && scan.telemetry_frames == 0) {
     return core::make_error(
         path.string() + ": no session metadata" +
         (scan.mcap.damage.empty() ? std::string() : " (" + scan.mcap.damage + ")"));

@@ -11,7 +11,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
+#include <span>
 #include <memory>
 #include <vector>
 
@@ -151,6 +154,58 @@ TEST(TelemetrySender, FramesArriveDecodableInOrderAtTheSchedule) {
   EXPECT_EQ(stats.send_errors, 0U);
   EXPECT_EQ(stats.bytes_max, datagrams.back().size());
   EXPECT_EQ(stats.bytes_p50, datagrams.front().size());
+}
+
+// The frames a recording keeps (channel 2): the sink gets every frame encoded, the same bytes
+// the socket sends; an unsent encoder (no destination) hands them over at the same schedule.
+TEST(TelemetrySender, TheFrameSinkGetsTheBytesSentAndAnUnsentEncoderSendsNothing) {
+  LoopbackReceiver receiver;
+  auto sender = TelemetrySender::create(loopback(receiver.port()), "sim.toml");
+  ASSERT_TRUE(sender) << sender.error().message;
+  std::vector<std::vector<std::byte>> sunk;
+  std::vector<std::int64_t> cycle_times;
+  (*sender)->set_frame_sink([&](std::span<const std::byte> bytes, const telemetry::Frame& f) {
+    sunk.emplace_back(bytes.begin(), bytes.end());
+    cycle_times.push_back(f.cycle_time_ns);
+  });
+  auto snapshot = sample_snapshot();
+  std::int64_t now = 1'000'000'000;
+  for (int k = 0; k < 5; ++k) {
+    snapshot->cycle = 100 + static_cast<std::uint64_t>(k);
+    snapshot->time_ns = 5'000'000 + k;
+    (*sender)->send_if_due(*snapshot, now);
+    now += kPeriodNs;
+  }
+  const auto datagrams = receiver.drain();
+  ASSERT_EQ(datagrams.size(), 5U);
+  ASSERT_EQ(sunk.size(), 5U);
+  for (std::size_t k = 0; k < 5; ++k) {
+    EXPECT_TRUE(std::equal(sunk[k].begin(), sunk[k].end(), datagrams[k].begin(),
+                           datagrams[k].end()));
+    EXPECT_EQ(cycle_times[k], 5'000'000 + static_cast<std::int64_t>(k));
+  }
+  EXPECT_TRUE((*sender)->sends());
+
+  auto unsent = TelemetrySender::create_unsent(loopback(receiver.port()), "sim.toml");
+  ASSERT_TRUE(unsent) << unsent.error().message;
+  EXPECT_FALSE((*unsent)->sends());
+  std::uint64_t frames = 0;
+  (*unsent)->set_frame_sink([&](std::span<const std::byte>, const telemetry::Frame&) { ++frames; });
+  for (int k = 0; k < 5; ++k) {
+    snapshot->cycle = 200 + static_cast<std::uint64_t>(k);
+    (*unsent)->send_if_due(*snapshot, now);
+    (*unsent)->send_if_due(*snapshot, now + kPeriodNs / 2);  // not due
+    now += kPeriodNs;
+  }
+  (*unsent)->send_final(*snapshot, now);
+  EXPECT_EQ(frames, 6U);
+  EXPECT_EQ((*unsent)->stats().frames_sent, 0U);
+  EXPECT_TRUE(receiver.drain().empty());
+  config::TelemetryConfig too_fast = loopback(receiver.port());
+  too_fast.rate_hz = 500;
+  auto refused = TelemetrySender::create_unsent(too_fast, "sim.toml");
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.error().message, "sim.toml: telemetry.rate_hz = 500: expected 30 to 120");
 }
 
 TEST(TelemetrySender, ASnapshotAlreadySentIsNotSentAgain) {

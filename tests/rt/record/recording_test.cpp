@@ -7,7 +7,9 @@
 //  - a gap (a cycle the ring dropped) is refused at the missing cycle; a changed image is
 //    refused before anything runs;
 //  - a real-clock run (dt measured, overruns possible) replays bit-exactly too;
-//  - the HAL taps count records a full ring refused.
+//  - the HAL taps count records a full ring refused;
+//  - the recording's channel 2 holds the telemetry frames at the stream's rate (no UDP
+//    destination configured): each decodes, log time = its cycle time, image checksums match.
 // The scene runs from a private copy with its own images, so tests building the shared ones
 // in out/ at the same time cannot change an image under a replay.
 #include <gtest/gtest.h>
@@ -16,9 +18,11 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -35,6 +39,7 @@
 #include "trainer/model_offline/modal_build.hpp"
 #include "trainer/record/cycle_sample.hpp"
 #include "trainer/record/recording.hpp"
+#include "trainer/telemetry/wire_format.hpp"
 
 namespace trainer::app {
 namespace {
@@ -207,6 +212,51 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   EXPECT_TRUE(replay->complete);
   EXPECT_EQ(replay_summary(*replay),
             std::to_string(kCycles) + " cycles, all outputs and state hashes identical");
+  EXPECT_FALSE(result->telemetry_stream) << "no UDP destination: no stream in the report";
+
+  // Channel 2: the telemetry frames the stream would send, at its rate (60 Hz by default) in
+  // the supervisor's time: about wall time × 60, one more for the run's last frame.
+  std::uint64_t frames = 0;
+  std::uint64_t undecoded = 0;
+  std::uint64_t wrong_checksums = 0;
+  std::uint64_t wrong_log_times = 0;
+  std::int64_t previous_time = -1;
+  std::uint64_t backwards = 0;
+  std::uint32_t last_flags = 0;
+  auto frame = std::make_unique<telemetry::Frame>();
+  auto with_frames = record::scan_recording(file, {}, [&](const record::TelemetryMessage& m) {
+    ++frames;
+    const auto decoded = telemetry::decode(std::as_bytes(m.bytes), *frame);
+    if (!decoded.ok()) {
+      ++undecoded;
+      return true;
+    }
+    if (static_cast<std::uint64_t>(frame->cycle_time_ns) != m.log_time_ns) ++wrong_log_times;
+    if (frame->cycle_time_ns < previous_time) ++backwards;
+    previous_time = frame->cycle_time_ns;
+    last_flags = frame->flags;
+    for (std::size_t i = 0; i < frame->model_count; ++i) {
+      const telemetry::ModelState& model = frame->models[i];
+      const auto& info = result->models.at(model.scene_index);
+      if (model.image_checksum != info.image_checksum) ++wrong_checksums;
+    }
+    return true;
+  });
+  ASSERT_TRUE(with_frames) << with_frames.error().message;
+  EXPECT_EQ(with_frames->records, kCycles);
+  EXPECT_EQ(with_frames->telemetry_frames, frames);
+  const double expected = result->wall_time_s * 60.0;
+  EXPECT_GE(static_cast<double>(frames), 0.25 * expected) << result->wall_time_s << " s";
+  EXPECT_LE(static_cast<double>(frames), expected + 3.0) << result->wall_time_s << " s";
+  EXPECT_GE(frames, 2U);
+  EXPECT_EQ(undecoded, 0U);
+  EXPECT_EQ(wrong_log_times, 0U);
+  EXPECT_EQ(wrong_checksums, 0U);
+  EXPECT_EQ(backwards, 0U);
+  EXPECT_NE(last_flags & telemetry::kFlagRunEnded, 0U);
+  std::printf("channel 2: %llu telemetry frames in %.2f s of wall time (%.1f per s)\n",
+              static_cast<unsigned long long>(frames), result->wall_time_s,
+              static_cast<double>(frames) / result->wall_time_s);
   if (!kFullSession) return;
 
   // The recording holds what the session did: contacts with the duct, distinct state hashes.

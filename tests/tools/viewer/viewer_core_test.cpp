@@ -2,7 +2,8 @@
 // into a temporary copy of config/, path in VIEWER_TEST_SCENE): reconstruction against the
 // runtime ModalModel it mirrors, the checksum refusal, the UDP source over loopback with frames
 // encoded by the telemetry wire library (ordering, duplicates, malformed and foreign-image
-// datagrams), and the page frame's layout.
+// datagrams), the recording source's playback (seek, pause, speed, end, a truncated file),
+// and the page frame's layout.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -12,6 +13,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <vector>
 
@@ -25,6 +28,8 @@
 #include "trainer/model/modal_image.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/telemetry/wire_format.hpp"
+#include "recording_source.hpp"
+#include "trainer/record/recording.hpp"
 #include "udp_source.hpp"
 #include "view_frame.hpp"
 
@@ -264,6 +269,119 @@ TEST(ViewerUdpSource, DecodesOrdersAndRefuses) {
   EXPECT_NE(stats.find("\"late\":1"), std::string::npos) << stats;
   EXPECT_NE(stats.find("\"malformed\":1"), std::string::npos) << stats;
   EXPECT_NE(stats.find("\"refused\":1"), std::string::npos) << stats;
+}
+
+// A session recording with only telemetry frames on channel 2: `count` frames at 60 Hz of log
+// time (cycle = 1000 + k), a chunk every 30 frames.
+std::filesystem::path playback_recording(const std::string& name, std::uint64_t count) {
+  const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                     ("viewer_playback_" + std::to_string(getpid()) + "_" + name +
+                                      ".mcap");
+  record::RecordingWriter writer;
+  EXPECT_TRUE(writer.open(path, {{"scene_name", "cbd"}}));
+  std::vector<std::byte> bytes(telemetry::kMaxDatagramBytes);
+  for (std::uint64_t k = 0; k < count; ++k) {
+    auto frame = wire_frame(k);
+    frame->cycle_time_ns = 7'000'000'000 + static_cast<std::int64_t>(k) * 16'666'667;
+    const telemetry::EncodeResult encoded = telemetry::encode(*frame, bytes);
+    EXPECT_TRUE(encoded.ok()) << encoded.error;
+    EXPECT_TRUE(writer.add_telemetry({bytes.data(), encoded.bytes}, frame->cycle_time_ns, k));
+    if (k % 30 == 29) {
+      EXPECT_TRUE(writer.flush());
+    }
+  }
+  EXPECT_TRUE(writer.close(0));
+  return path;
+}
+
+TEST(ViewerRecordingSource, SeekPausePlaySpeedAndEnd) {
+  const auto path = playback_recording("seek", 120);
+  std::int64_t now = 0;
+  auto source = RecordingSource::open(assets(), path, [&now] { return now; });
+  ASSERT_TRUE(source) << source.error().message;
+  RecordingSource& s = **source;
+  EXPECT_EQ(s.frame_count(), 120U);
+  EXPECT_NEAR(s.duration_s(), 119 * 0.016666667, 1e-6);
+  EXPECT_EQ(s.damage(), "");
+  SceneFrame frame;
+  auto next = [&] {
+    auto got = s.next(frame, std::chrono::milliseconds(0));
+    EXPECT_TRUE(got) << got.error().message;
+    return got && *got;
+  };
+  // Playing: the frame due at the clock, nothing new until the next one is due.
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1000U);
+  EXPECT_FALSE(next());
+  now = 505'000'000;  // 0.505 s: frame 30 is at 0.50000001 s
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1030U);
+  EXPECT_EQ(frame.times.sent_ns, 0);  // no hop latencies for a recorded frame
+  // Seek to just after 1.0 s: frame 60; seek between frames: the one before.
+  s.control(R"({"type":"playback","action":"seek","t":1.005})");
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1060U);
+  s.control(R"({"type":"playback","action":"seek","t":0.26})");
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1015U);
+  // Pause holds: a second later nothing new, position unchanged; a seek while paused shows.
+  s.control(R"({"type":"playback","action":"pause"})");
+  now += 1'000'000'000;
+  EXPECT_FALSE(next());
+  EXPECT_NEAR(s.position_s(), 0.26, 1e-6);
+  EXPECT_TRUE(s.paused());
+  s.control(R"({"type":"playback","action":"seek","t":1.505})");
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1090U);
+  now += 1'000'000'000;
+  EXPECT_FALSE(next());
+  // Play at double speed: 0.25 s of clock is 0.5 s of recording.
+  s.control(R"({"type":"playback","action":"speed","speed":2})");
+  s.control(R"({"type":"playback","action":"play"})");
+  now += 250'000'000;
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1119U);  // 2.0 s is past the end (1.983 s): the last frame
+  EXPECT_TRUE(s.ended());
+  EXPECT_FALSE(next());
+  EXPECT_NE(s.playback_json().find("\"ended\":true"), std::string::npos) << s.playback_json();
+  // Play at the end starts again from the first frame; junk requests change nothing.
+  s.control(R"({"type":"playback","action":"play"})");
+  s.control("not json");
+  s.control(R"({"type":"playback","action":"seek","t":"x"})");
+  ASSERT_TRUE(next());
+  EXPECT_EQ(frame.cycle, 1000U);
+  EXPECT_FALSE(s.ended());
+  std::filesystem::remove(path);
+}
+
+TEST(ViewerRecordingSource, TruncatedFileIsReadUpToTheDamage) {
+  const auto whole = playback_recording("whole", 120);
+  const auto cut = std::filesystem::path(whole.string() + ".cut");
+  const auto size = std::filesystem::file_size(whole);
+  {
+    std::ifstream in(whole, std::ios::binary);
+    std::vector<char> bytes(size / 2);
+    in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    std::ofstream out(cut, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  auto source = RecordingSource::open(assets(), cut, [] { return std::int64_t{0}; });
+  ASSERT_TRUE(source) << source.error().message;
+  EXPECT_GT((*source)->frame_count(), 0U);
+  EXPECT_LT((*source)->frame_count(), 120U);
+  EXPECT_EQ((*source)->frame_count() % 30, 0U);  // whole chunks only
+  EXPECT_NE((*source)->damage(), "");
+  EXPECT_NE((*source)->describe().find("read up to the damage"), std::string::npos)
+      << (*source)->describe();
+  // A file with no telemetry frames is refused, saying so.
+  const auto empty = playback_recording("none", 0);
+  auto refused = RecordingSource::open(assets(), empty);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("no telemetry frames"), std::string::npos)
+      << refused.error().message;
+  std::filesystem::remove(whole);
+  std::filesystem::remove(cut);
+  std::filesystem::remove(empty);
 }
 
 TEST(ViewerPageFrame, LayoutAndPlacements) {

@@ -7,6 +7,8 @@
 //                        [--model I] [--gap-ms MS] [--attempts N] [--seconds S] [--json FILE]
 //                        [--expect-deformation M] [--screenshot-cycle C]
 //                        [--fault-command CMD] [--expect-fault S]  (then a fault banner must show within S s)
+//                        [--playback-seek A,B]  (a recording source: the playback bar shows; paused,
+//                        a seek to A then to B changes the model's screen area, pause holds the frame)
 // Exit: 0 pass, 1 fail, 77 chromium absent (ctest SKIP_RETURN_CODE).
 import { createRequire } from 'node:module';
 import { spawn } from 'node:child_process';
@@ -46,16 +48,62 @@ try {
   page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
   page.on('pageerror', (e) => consoleErrors.push(String(e)));
   await page.goto(args.url, { waitUntil: 'load', timeout: 10000 });
+  const minFrames = args['playback-seek'] ? 1 : 5;  // a recording's frames may be sparse
   try {
-    await page.waitForFunction(() => window.viewerStats && window.viewerStats.connected &&
-                               window.viewerStats.framesDrawn >= 5, { timeout: 10000, polling: 100 });
+    await page.waitForFunction((minFrames) => window.viewerStats && window.viewerStats.connected &&
+                               window.viewerStats.framesDrawn >= minFrames, { timeout: 10000, polling: 100 }, minFrames);
   } catch {
     const s = await page.evaluate(() => window.viewerStats);
-    throw new Error(`page did not connect and draw 5 frames in 10 s: ${JSON.stringify(s && { ...s, hops: undefined, rebuildMs: undefined })}; console: ${consoleErrors.join(' | ')}`);
+    throw new Error(`page did not connect and draw ${minFrames} frames in 10 s: ${JSON.stringify(s && { ...s, hops: undefined, rebuildMs: undefined })}; console: ${consoleErrors.join(' | ')}`);
   }
   const rect = await page.evaluate((i) => window.viewerScreenRects()[i], modelIndex);
   if (!rect || rect.width < 10 || rect.height < 10) throw new Error(`model ${modelIndex} is not on screen: ${JSON.stringify(rect)}`);
   const clip = { x: Math.floor(rect.x), y: Math.floor(rect.y), width: Math.ceil(rect.width), height: Math.ceil(rect.height) };
+  const differing = (a, b) => page.evaluate(async (a, b) => {
+    const load = async (data) => {
+      const image = new Image();
+      image.src = `data:image/png;base64,${data}`;
+      await image.decode();
+      const canvas = document.createElement('canvas');
+      canvas.width = image.width; canvas.height = image.height;
+      const context = canvas.getContext('2d');
+      context.drawImage(image, 0, 0);
+      return context.getImageData(0, 0, image.width, image.height).data;
+    };
+    const pa = await load(a), pb = await load(b);
+    let count = 0;
+    for (let i = 0; i < pa.length; i += 4) {
+      if (Math.abs(pa[i] - pb[i]) + Math.abs(pa[i + 1] - pb[i + 1]) + Math.abs(pa[i + 2] - pb[i + 2]) > 24) ++count;
+    }
+    return { count, total: pa.length / 4 };
+  }, a, b);
+  if (args['playback-seek']) {
+    // Playback: the bar is there; pause, seek to A (the frame drawn, then held), seek to B.
+    const [a, b] = args['playback-seek'].split(',').map(Number);
+    const bar = await page.evaluate(() => getComputedStyle(document.getElementById('playback')).display);
+    if (bar !== 'flex') throw new Error(`no playback bar (display ${bar})`);
+    const seekTo = async (t) => {
+      await page.evaluate((t) => window.viewerPlaybackRequest({ action: 'seek', t }), t);
+      await page.waitForFunction((t) => window.viewerPlayback && window.viewerPlayback.paused &&
+                                 Math.abs(window.viewerPlayback.position_s - t) < 1e-6, { timeout: 5000, polling: 50 }, t);
+      await new Promise((r) => setTimeout(r, 250));  // the frame at t reaches the page and is drawn
+      return page.evaluate(() => window.viewerStats.lastCycle);
+    };
+    await page.evaluate(() => window.viewerPlaybackRequest({ action: 'pause' }));
+    const cycleA = await seekTo(a);
+    const shotA = await page.screenshot({ encoding: 'base64', clip });
+    await new Promise((r) => setTimeout(r, 300));
+    const heldCycle = await page.evaluate(() => window.viewerStats.lastCycle);
+    const cycleB = await seekTo(b);
+    const shotB = await page.screenshot({ encoding: 'base64', clip });
+    const diff = await differing(shotA, shotB);
+    const result = { rect: clip, seek_s: [a, b], cycles: [cycleA, cycleB], held: heldCycle, changedPixels: diff.count, pixels: diff.total };
+    console.log(JSON.stringify(result));
+    if (heldCycle !== cycleA) fail(`paused, yet the page drew cycle ${heldCycle} after ${cycleA}`);
+    if (!(cycleB > cycleA)) fail(`seek to ${b} s drew cycle ${cycleB}, to ${a} s cycle ${cycleA}`);
+    if (diff.count < 0.002 * diff.total) fail(`the model's screen area did not change: ${diff.count} of ${diff.total} pixels`);
+    if (consoleErrors.length) fail(`console errors: ${consoleErrors.join(' | ')}`);
+  } else {
   // Pairs of screenshots gapMs apart until one pair differs (a live scene deforms at its own
   // pace: the trainer's duct only while a tool or the catheter loads it), at most `attempts`.
   const attempts = Number(args.attempts ?? 1);
@@ -143,6 +191,7 @@ try {
   }
   console.log(JSON.stringify(result, null, 1));
   if (args.json) fs.writeFileSync(args.json, JSON.stringify(result, null, 1));
+  }  // live
 } catch (error) {
   fail(error.message);
 } finally {

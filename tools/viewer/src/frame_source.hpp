@@ -1,6 +1,6 @@
-// Where the viewer's frames come from. The live UDP stream is one source; a recording (the
-// record helper's MCAP reader, with seek) is meant to be another: the main loop only calls
-// next(), and the page's control messages (seek, pause) reach the source through control().
+// Where the viewer's frames come from: the live UDP stream, a session recording played back
+// with seek (recording_source.hpp), a test pattern. The main loop only calls next(); the
+// page's control messages (seek, pause, play, speed) reach the source through control().
 #pragma once
 
 #include <chrono>
@@ -24,6 +24,9 @@ class FrameSource {
   virtual std::string stats_json() const = 0;
   // A control message from the page (JSON text); live sources ignore it.
   virtual void control(std::string_view /*message*/) {}
+  // The playback state for the page's playback bar (a JSON object with "type":"playback"),
+  // "" for live sources (no bar).
+  virtual std::string playback_json() const { return ""; }
 };
 
 }  // namespace trainer::viewer

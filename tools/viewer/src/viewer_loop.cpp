@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -52,6 +53,7 @@ LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebS
   LoopSummary summary;
   const auto start = std::chrono::steady_clock::now();
   auto next_session = start + std::chrono::seconds(1);
+  auto next_playback = start;
   SceneFrame frame;
   std::vector<std::byte> encoded;
   double bytes_total = 0.0;
@@ -63,6 +65,15 @@ LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebS
     if (now >= next_session) {
       next_session += std::chrono::seconds(1);
       server.broadcast_text(session_json(summary, source, read_metrics_file(metrics_file)));
+    }
+    // Playback requests from the page, and the playback state for its bar (~10 Hz, and at
+    // once after a request).
+    const std::vector<std::string> controls = server.take_controls();
+    for (const std::string& c : controls) source.control(c);
+    if (!controls.empty() || now >= next_playback) {
+      next_playback = now + std::chrono::milliseconds(100);
+      const std::string playback = source.playback_json();
+      if (!playback.empty()) server.broadcast_text(playback);
     }
     auto got = source.next(frame, std::chrono::milliseconds(50));
     if (!got) {

@@ -1,6 +1,6 @@
 // viewer: the graphics host program (docs/viewer.md). Loads the scene and the same model
 // images as the appliance, receives frames from a source (the trainer's telemetry stream over
-// UDP; a synthetic test pattern), rebuilds the deformed surfaces and serves the three.js page
+// UDP; a session recording played back with seek; a synthetic test pattern), rebuilds the deformed surfaces and serves the three.js page
 // and the frames over HTTP + WebSocket.
 #include <csignal>
 #include <cstdio>
@@ -13,6 +13,7 @@
 #include <CLI/CLI.hpp>
 
 #include "frame_source.hpp"
+#include "recording_source.hpp"
 #include "scene_assets.hpp"
 #include "test_pattern_source.hpp"
 #include "udp_source.hpp"
@@ -56,12 +57,16 @@ int main(int argc, char** argv) {
   double seconds = 0.0;
   double pattern_rate_hz = 60.0;
   std::string metrics_file;
+  std::filesystem::path recording_file;
   app.add_option("--scene", scene_file,
                  "scene file the appliance runs (its models' images are loaded)")
       ->required();
   app.add_option("--source", source_name,
-                 "frame source: udp (the trainer's stream) or test-pattern")
-      ->check(CLI::IsMember({"udp", "test-pattern"}));
+                 "frame source: udp (the trainer's stream), recording (a session recording's "
+                 "telemetry frames, played back with seek) or test-pattern")
+      ->check(CLI::IsMember({"udp", "recording", "test-pattern"}));
+  app.add_option("--recording", recording_file,
+                 "session recording (trainer --record FILE) to play back (recording source)");
   app.add_option("--udp", udp, "address:port the stream arrives on (udp source)");
   app.add_option("--http-address", http_address,
                  "address the page is served on (0.0.0.0: the LAN)");
@@ -101,6 +106,21 @@ int main(int argc, char** argv) {
   std::unique_ptr<viewer::FrameSource> source;
   if (source_name == "test-pattern") {
     source = std::make_unique<viewer::TestPatternSource>(**assets, pattern_rate_hz);
+  } else if (source_name == "recording") {
+    if (recording_file.empty()) {
+      std::fprintf(stderr, "viewer: --source recording needs --recording FILE\n");
+      return 1;
+    }
+    auto recording = viewer::RecordingSource::open(**assets, recording_file);
+    if (!recording) {
+      std::fprintf(stderr, "viewer: %s\n", recording.error().message.c_str());
+      return 1;
+    }
+    if (!(*recording)->damage().empty()) {
+      std::fprintf(stderr, "viewer: %s: read up to the damage: %s\n", recording_file.c_str(),
+                   (*recording)->damage().c_str());
+    }
+    source = std::move(recording).value();
   } else {
     auto udp_source = viewer::UdpSource::open(**assets, udp);
     if (!udp_source) {

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cstring>
+#include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include <civetweb.h>
 
@@ -131,7 +134,18 @@ void WebServer::on_ready(mg_connection* connection) {
 
 void WebServer::on_text(const char* data, std::size_t length) {
   const std::lock_guard lock(mutex_);
+  const std::string_view text(data, length);
+  // Playback requests are few (a click, a slider move); a page flooding them is capped.
+  if (text.find("\"type\":\"playback\"") != std::string_view::npos) {
+    if (controls_.size() < 64) controls_.emplace_back(text);
+    return;
+  }
   page_stats_.assign(data, length);
+}
+
+std::vector<std::string> WebServer::take_controls() {
+  const std::lock_guard lock(mutex_);
+  return std::exchange(controls_, {});
 }
 
 void WebServer::on_close(const mg_connection* connection) {

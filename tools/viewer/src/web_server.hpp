@@ -47,6 +47,8 @@ class WebServer {
   std::uint64_t frames_sent() const noexcept { return frames_sent_.load(); }
   // The last statistics JSON a page sent (its frame rate and latencies), "" before any.
   std::string last_page_stats();
+  // The page's playback requests ({"type":"playback",...}) since the last call, in order.
+  std::vector<std::string> take_controls();
 
   // CivetWeb callbacks (C linkage trampolines call these).
   int handle_request(mg_connection* connection);
@@ -59,9 +61,10 @@ class WebServer {
   mg_context* context_ = nullptr;
   std::uint16_t port_ = 0;
   WebContent content_;
-  std::mutex mutex_;  // clients_, page_stats_
+  std::mutex mutex_;  // clients_, page_stats_, controls_
   std::vector<mg_connection*> clients_;
   std::string page_stats_;
+  std::vector<std::string> controls_;
   std::atomic<std::uint64_t> frames_sent_{0};
 };
 

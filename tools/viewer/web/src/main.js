@@ -243,6 +243,34 @@ function updatePanel(latestCycleNs) {
   document.getElementById('session').innerHTML = html;
 }
 
+// ---- playback bar (a recording source): play/pause, seek slider, time
+let playback = null;
+let seeking = false;
+function sendPlayback(request) {
+  if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify({ type: 'playback', ...request }));
+}
+function showPlayback(state) {
+  playback = state;
+  window.viewerPlayback = state;
+  const bar = document.getElementById('playback');
+  bar.style.display = 'flex';
+  const seek = document.getElementById('seek');
+  seek.max = String(state.duration_s);
+  if (!seeking) seek.value = String(state.position_s);
+  document.getElementById('play-pause').textContent = state.paused || state.ended ? 'play' : 'pause';
+  document.getElementById('playback-time').textContent =
+    `${state.position_s.toFixed(1)} / ${state.duration_s.toFixed(1)} s` + (state.speed !== 1 ? ` ×${state.speed}` : '') +
+    (state.damage ? ' (file damaged: read up to it)' : '');
+  if (state.damage) document.getElementById('playback').title = state.damage;
+}
+document.getElementById('play-pause').addEventListener('click', () => {
+  sendPlayback({ action: playback && (playback.paused || playback.ended) ? 'play' : 'pause' });
+});
+const seekInput = document.getElementById('seek');
+seekInput.addEventListener('input', () => { seeking = true; sendPlayback({ action: 'seek', t: Number(seekInput.value) }); });
+seekInput.addEventListener('change', () => { seeking = false; sendPlayback({ action: 'seek', t: Number(seekInput.value) }); });
+window.viewerPlaybackRequest = sendPlayback;
+
 // ---- connection
 let socket = null;
 let latestCycleNs = 0;
@@ -262,6 +290,7 @@ function connect() {
       const message = JSON.parse(event.data);
       if (message.type === 'session') session = message;
       if (message.type === 'status') stats.error = message.error || '';
+      if (message.type === 'playback') showPlayback(message);
       return;
     }
     const frame = decodeFrame(event.data, sceneInfo);

@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,11 @@ class SessionRecorder {
   // Writes every record in the ring. The first write error stops the recording (the run goes
   // on); error() says what it was.
   void drain();
+  // One telemetry frame (encoded bytes) on the recording's channel 2, log time = the frame's
+  // cycle time (the supervisor's frame sink; docs/recording.md). Errors as drain().
+  void add_telemetry(std::span<const std::byte> frame, std::int64_t cycle_time_ns,
+                     std::uint64_t sequence);
+  std::uint64_t telemetry_frames() const noexcept { return writer_.telemetry_frames(); }
   // Drains, then writes the end of the file (the ring's drop count, the summary).
   void close();
 

@@ -9,13 +9,20 @@
 // supervisor (a full socket buffer drops the frame). The sender never reads from its socket
 // (its receive buffer is set to the minimum): traffic toward the appliance reaches no code.
 //
+// The same object encodes the frames a session recording keeps (channel 2, docs/recording.md):
+// with a frame sink set, every frame encoded is handed to it (then sent, if there is a
+// destination); create_unsent() makes one with no socket, for a recording without a stream.
+//
 // Memory: the frame (25 KiB) and the datagram buffer are allocated at create(); sending a
 // frame allocates nothing (TelemetrySender.SendingAllocatesNothing).
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -61,7 +68,16 @@ class TelemetrySender {
   // "--telemetry"), then the key ("telemetry.address" in a device file) and the reason.
   static core::Expected<std::unique_ptr<TelemetrySender>> create(
       const config::TelemetryConfig& config, const std::string& origin);
+  // Setup path: a sender with no destination (frames are encoded for the sink only, never
+  // sent); rate_hz as in create(), same errors.
+  static core::Expected<std::unique_ptr<TelemetrySender>> create_unsent(
+      const config::TelemetryConfig& config, const std::string& origin);
   ~TelemetrySender();
+  // Called with every frame encoded (its bytes, valid during the call, and the frame), before
+  // it is sent. Setup path only.
+  using FrameSink = std::function<void(std::span<const std::byte>, const telemetry::Frame&)>;
+  void set_frame_sink(FrameSink sink) { sink_ = std::move(sink); }
+  bool sends() const noexcept { return fd_ >= 0; }
   TelemetrySender(const TelemetrySender&) = delete;
   TelemetrySender& operator=(const TelemetrySender&) = delete;
 
@@ -84,7 +100,11 @@ class TelemetrySender {
   void send_snapshot(const TelemetrySnapshot& snapshot, std::int64_t now_ns,
                      std::uint32_t extra_flags) noexcept;
 
+  static core::Expected<void> check_rate(const config::TelemetryConfig& config,
+                                         const std::string& origin);
+  void allocate(std::uint32_t rate_hz);
   int fd_ = -1;
+  FrameSink sink_;
   std::int64_t period_ns_ = 0;
   std::int64_t next_due_ns_ = 0;
   bool has_sent_ = false;
