@@ -222,6 +222,12 @@ void TelemetrySender::send_snapshot(const TelemetrySnapshot& snapshot, std::int6
   frame.sequence = sequence_;
   frame.send_time_ns = now_ns;
   frame.send_wall_ns = sender_clock_ns(CLOCK_REALTIME);
+  frame.has_metrics = metrics_ != nullptr;
+  if (metrics_ != nullptr) {
+    frame.metrics = *metrics_;
+    frame.metrics.instrument_count = static_cast<std::uint8_t>(
+        std::min<std::uint32_t>(frame.metrics.instrument_count, frame.instrument_count));
+  }
   if (trim_to_budget(frame, kFrameBudgetBytes)) ++stats_.trimmed;
   if (telemetry::encoded_size(frame) > kFrameBudgetBytes) ++stats_.over_budget;
   const telemetry::EncodeResult encoded = telemetry::encode(frame, datagram_);

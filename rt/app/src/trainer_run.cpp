@@ -14,6 +14,7 @@
 #include "trainer/app/rt_self_check.hpp"
 #include "trainer/app/service_supervision.hpp"
 #include "trainer/app/session_recording.hpp"
+#include "trainer/app/stream_metrics.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
@@ -218,7 +219,7 @@ core::Expected<void> prepare_run(const RunOptions& options, RunSetup& setup) {
     setup.telemetry_sender = std::move(*sender);
   }
   // A recording keeps the stream's frames (channel 2) at its rate, sent or not.
-  if (setup.recorder) {
+  if (setup.recorder->recording()) {
     if (!setup.telemetry_sender) {
       auto encoder = TelemetrySender::create_unsent(
           stream, options.telemetry ? std::string("--telemetry") : cfg.device.source_path.string());
@@ -311,28 +312,44 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
       setup.recorder && options.time_source == TimeSource::simulated ? kRecordingDrainPeriodNs
                                                                      : kSupervisorPeriodNs;
   TelemetrySender* sender = setup.telemetry_sender.get();
+  // Every frame carries the session's trainee metrics so far (the viewer's session panel).
+  telemetry::SessionMetrics frame_metrics{};
+  if (sender != nullptr && setup.recorder->session_metrics()) sender->set_metrics(&frame_metrics);
   bool have_snapshot = false;
   const auto monotonic_now_ns = [] {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(
                std::chrono::steady_clock::now().time_since_epoch())
         .count();
   };
+  // The stream's schedule: CLOCK_MONOTONIC in real time; in simulated time the loop's clock
+  // (the newest snapshot's cycle time), so a recording's frames come at the stream's rate per
+  // session second (at most one per supervisor wake, every 2 ms of wall time).
+  const bool simulated = options.time_source == TimeSource::simulated;
+  const auto stream_now_ns = [&] {
+    if (!simulated) return monotonic_now_ns();
+    return have_snapshot ? setup.telemetry->latest().time_ns : std::int64_t{0};
+  };
+  bool fresh_snapshot = false;
   std::int64_t supervised_ns = 0;
   while (!finished.load(std::memory_order_acquire)) {
     // Wakes at the recording's drain period or, with a telemetry stream, when its next frame
     // is due (30–120 Hz), whichever comes first; else at ~30 Hz.
     const std::int64_t wait_ns =
-        sender != nullptr
-            ? std::clamp<std::int64_t>(sender->ns_until_due(monotonic_now_ns()), 0,
+        sender != nullptr && !simulated
+            ? std::clamp<std::int64_t>(sender->ns_until_due(stream_now_ns()), 0,
                                        supervisor_period_ns)
             : supervisor_period_ns;
     if (signals.wait_for(wait_ns) != 0) {
       result.stopped_by_signal = true;
       stop.store(true, std::memory_order_release);
     }
-    if (setup.recorder) setup.recorder->drain();
+    setup.recorder->drain();
+    if (simulated && setup.telemetry->update()) {  // the stream's clock in simulated time
+      have_snapshot = true;
+      fresh_snapshot = true;
+    }
     // Log, telemetry and service supervision at ~30 Hz whatever the recording's drain rate.
-    const bool frame_due = sender != nullptr && sender->ns_until_due(monotonic_now_ns()) <= 0;
+    const bool frame_due = sender != nullptr && sender->ns_until_due(stream_now_ns()) <= 0;
     if (supervisor_period_ns < kSupervisorPeriodNs && !frame_due &&
         !finished.load(std::memory_order_acquire) &&
         monotonic_now_ns() - supervised_ns < kSupervisorPeriodNs) {
@@ -340,20 +357,30 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
     }
     supervised_ns = monotonic_now_ns();
     drain_log(*setup.log, options);
-    if (setup.telemetry->update()) {
+    if (setup.telemetry->update()) fresh_snapshot = true;
+    if (fresh_snapshot) {
+      fresh_snapshot = false;
       have_snapshot = true;
       service.observe(setup.telemetry->latest());
       if (options.on_telemetry) options.on_telemetry(setup.telemetry->latest());
     }
-    if (sender != nullptr && have_snapshot)
-      sender->send_if_due(setup.telemetry->latest(), monotonic_now_ns());
+    if (sender != nullptr && have_snapshot && frame_due) {
+      if (const auto& session = setup.recorder->session_metrics())
+        frame_metrics = stream_metrics(session->result());
+      sender->send_if_due(setup.telemetry->latest(), stream_now_ns());
+    }
     service.tick(finished.load(std::memory_order_acquire), monotonic_now_ns());
   }
   service.stopping(result.stopped_by_signal);
   thread->join();
   if (sender != nullptr) {
     if (setup.telemetry->update()) have_snapshot = true;
-    if (have_snapshot) sender->send_final(setup.telemetry->latest(), monotonic_now_ns());
+    if (have_snapshot) {
+      setup.recorder->drain();  // every cycle's record into the final frame's metrics
+      if (const auto& session = setup.recorder->session_metrics())
+        frame_metrics = stream_metrics(session->result());
+      sender->send_final(setup.telemetry->latest(), stream_now_ns());
+    }
     if (sender->sends()) result.telemetry_stream = sender->stats();
   }
   result.rt.cpu_dma_latency_us = cpu_latency.latency_us();

@@ -13,8 +13,10 @@
 // The scene runs from a private copy with its own images, so tests building the shared ones
 // in out/ at the same time cannot change an image under a replay.
 #include <gtest/gtest.h>
+
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -214,8 +216,10 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
             std::to_string(kCycles) + " cycles, all outputs and state hashes identical");
   EXPECT_FALSE(result->telemetry_stream) << "no UDP destination: no stream in the report";
 
-  // Channel 2: the telemetry frames the stream would send, at its rate (60 Hz by default) in
-  // the supervisor's time: about wall time × 60, one more for the run's last frame.
+  // Channel 2: the telemetry frames the stream would send, at its rate (60 Hz by default) on
+  // the loop's clock in simulated time: at most session time × 60 plus the first and the run's
+  // last frame, and at most one per supervisor wake (2 ms of wall time) when the simulation
+  // runs faster than that. Each carries the session's metrics so far.
   std::uint64_t frames = 0;
   std::uint64_t undecoded = 0;
   std::uint64_t wrong_checksums = 0;
@@ -223,6 +227,7 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   std::int64_t previous_time = -1;
   std::uint64_t backwards = 0;
   std::uint32_t last_flags = 0;
+  std::uint64_t without_metrics = 0;
   auto frame = std::make_unique<telemetry::Frame>();
   auto with_frames = record::scan_recording(file, {}, [&](const record::TelemetryMessage& m) {
     ++frames;
@@ -235,6 +240,7 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
     if (frame->cycle_time_ns < previous_time) ++backwards;
     previous_time = frame->cycle_time_ns;
     last_flags = frame->flags;
+    if (!frame->has_metrics) ++without_metrics;
     for (std::size_t i = 0; i < frame->model_count; ++i) {
       const telemetry::ModelState& model = frame->models[i];
       const auto& info = result->models.at(model.scene_index);
@@ -245,18 +251,25 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   ASSERT_TRUE(with_frames) << with_frames.error().message;
   EXPECT_EQ(with_frames->records, kCycles);
   EXPECT_EQ(with_frames->telemetry_frames, frames);
-  const double expected = result->wall_time_s * 60.0;
-  EXPECT_GE(static_cast<double>(frames), 0.25 * expected) << result->wall_time_s << " s";
-  EXPECT_LE(static_cast<double>(frames), expected + 3.0) << result->wall_time_s << " s";
+  const double session_s = static_cast<double>(kCycles) * 1e-3;  // cbd: 1 ms period
+  const double wakes = result->wall_time_s / 2e-3;
+  EXPECT_LE(static_cast<double>(frames), session_s * 60.0 + 2.0) << result->wall_time_s << " s";
+  EXPECT_GE(static_cast<double>(frames), 0.25 * std::min(session_s * 60.0, wakes))
+      << result->wall_time_s << " s";
   EXPECT_GE(frames, 2U);
+  EXPECT_EQ(without_metrics, 0U);
+  // The last frame's metrics are the report's (every cycle fed before it was sent).
+  ASSERT_TRUE(result->metrics);
+  EXPECT_FLOAT_EQ(frame->metrics.session_time_s, static_cast<float>(result->metrics->session_time_s));
+  EXPECT_FLOAT_EQ(frame->metrics.instruments[0].path_length_m,
+                  static_cast<float>(result->metrics->instruments[0].path_length_m));
   EXPECT_EQ(undecoded, 0U);
   EXPECT_EQ(wrong_log_times, 0U);
   EXPECT_EQ(wrong_checksums, 0U);
   EXPECT_EQ(backwards, 0U);
   EXPECT_NE(last_flags & telemetry::kFlagRunEnded, 0U);
-  std::printf("channel 2: %llu telemetry frames in %.2f s of wall time (%.1f per s)\n",
-              static_cast<unsigned long long>(frames), result->wall_time_s,
-              static_cast<double>(frames) / result->wall_time_s);
+  std::printf("channel 2: %llu telemetry frames over %.2f s of session, %.2f s of wall time\n",
+              static_cast<unsigned long long>(frames), session_s, result->wall_time_s);
   if (!kFullSession) return;
 
   // The recording holds what the session did: contacts with the duct, distinct state hashes.

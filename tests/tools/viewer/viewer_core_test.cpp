@@ -23,6 +23,7 @@
 
 #include "reconstruct.hpp"
 #include "scene_assets.hpp"
+#include "viewer_loop.hpp"
 #include "trainer/core/arena.hpp"
 #include "trainer/model/image_loader.hpp"
 #include "trainer/model/modal_image.hpp"
@@ -100,6 +101,32 @@ void expect_matches_runtime(std::uint32_t active_modes) {
   }
   EXPECT_GT(largest, 1e-6F) << "the loads moved nothing";
   EXPECT_LT(worst, 1e-4F * largest) << "largest " << largest;
+}
+
+// The session panel's trainee metrics from a frame's metrics section (wire format 1.1): task
+// state, insertion only with a goal, instruments by their scene names, lengths in mm.
+TEST(ViewerPanel, StreamMetricsBecomeThePanelsObject) {
+  telemetry::SessionMetrics m;
+  m.flags = telemetry::kMetricsTaskStarted | telemetry::kMetricsInsertionGoal;
+  m.task_time_s = 4.25F;
+  m.insertion_depth_m = 0.0075F;
+  m.instrument_count = 2;
+  m.instruments[0].path_length_m = 0.075F;
+  m.instruments[0].grasps = 1;
+  m.instruments[1].movements = 3;
+  const nlohmann::json panel = nlohmann::json::parse(stream_metrics_json(m, {"left", "right"}));
+  EXPECT_EQ(panel["task"], "in progress");
+  EXPECT_DOUBLE_EQ(panel["task_time_s"].get<double>(), 4.25);
+  EXPECT_DOUBLE_EQ(panel["insertion_depth_mm"].get<double>(), 7.5);
+  EXPECT_EQ(panel["time_to_target_s"], "not reached");
+  EXPECT_DOUBLE_EQ(panel["left"]["path_mm"].get<double>(), 75.0);
+  EXPECT_EQ(panel["left"]["grasps"], 1);
+  EXPECT_EQ(panel["right"]["movements"], 3);
+  m.flags = telemetry::kMetricsTaskStarted | telemetry::kMetricsTaskCompleted;
+  const nlohmann::json done = nlohmann::json::parse(stream_metrics_json(m, {}));
+  EXPECT_EQ(done["task"], "completed");
+  EXPECT_FALSE(done.contains("insertion_depth_mm"));
+  EXPECT_TRUE(done.contains("instrument 0"));
 }
 
 TEST(ViewerReconstruct, ModalMatchesTheRuntimeWithStaticCorrection) {

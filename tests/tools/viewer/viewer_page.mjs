@@ -6,6 +6,7 @@
 //   node viewer_page.mjs --modules DIR --url URL [--chromium PATH] [--screenshot FILE]
 //                        [--model I] [--gap-ms MS] [--attempts N] [--seconds S] [--json FILE]
 //                        [--expect-deformation M] [--screenshot-cycle C]
+//                        [--expect-metrics S]  (the session panel must show the stream's trainee metrics within S s)
 //                        [--fault-command CMD] [--expect-fault S]  (then a fault banner must show within S s)
 //                        [--playback-seek A,B]  (a recording source: the playback bar shows; paused,
 //                        a seek to A then to B changes the model's screen area, pause holds the frame)
@@ -148,6 +149,18 @@ try {
                                Number(args['screenshot-cycle']));
   }
   if (args.screenshot) await page.screenshot({ path: args.screenshot });
+  if (args['expect-metrics']) {
+    // The appliance's trainee metrics arrive in the frames (wire format 1.1) and the session
+    // panel shows them: a task state and an instrument's path length.
+    try {
+      await page.waitForFunction(() => { const t = document.getElementById('session').textContent;
+                                         return t.includes('trainee metrics') && t.includes('path mm') && t.includes('task'); },
+                                 { timeout: Number(args['expect-metrics']) * 1000, polling: 100 });
+      result.metricsPanel = await page.evaluate(() => document.getElementById('session').textContent);
+    } catch {
+      fail(`no trainee metrics in the session panel within ${args['expect-metrics']} s`);
+    }
+  }
   if (args['fault-command']) {
     // A stream that latches a fault (e.g. the trainer not armed) is started now.
     const child = spawn('/bin/sh', ['-c', args['fault-command']], { stdio: 'ignore' });

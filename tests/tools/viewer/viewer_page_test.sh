@@ -2,8 +2,9 @@
 # The viewer end to end in headless Chromium: the cbd scene's images built (modelc), the viewer
 # started on loopback, a telemetry stream sent to it, and the page opened with puppeteer-core
 # over the system's chromium (viewer_page.mjs). The page must load the scene, connect and draw,
-# and two screenshots 0.5 s apart must differ where the duct is. Then a stream latching a
-# fault must bring up the page's red banner. Exit 77 (skip) without chromium.
+# and two screenshots 0.5 s apart must differ where the duct is; with the trainer's stream the
+# session panel must show the trainee metrics the frames carry. Then a stream latching a fault
+# must bring up the page's red banner. Exit 77 (skip) without chromium.
 #
 # SENDER is either the trainer (the real appliance stream: the cbd scene on the simulated bench
 # in real time with --telemetry to the viewer; the duct must really deform, by >= 0.3 mm; then
@@ -47,7 +48,7 @@ if [ "$(basename "$sender")" = trainer ]; then
   "$sender" --scene "$scene" --hal sim --time real --no-rt --telemetry "127.0.0.1:$udp_port" \
     --report "$work/run.json" >"$work/sender.txt" 2>&1 &
   sender_pid=$!
-  checks+=(--attempts 16 --expect-deformation 0.0003)
+  checks+=(--attempts 16 --expect-deformation 0.0003 --expect-metrics 5)
   [ -n "$screenshot" ] && checks+=(--screenshot-cycle 6000)
   fault="'$sender' --scene '$scene' --hal sim --time real --no-rt --no-arm --seconds 4 \
 --telemetry 127.0.0.1:$udp_port >'$work/fault.txt' 2>&1"

@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "trainer/telemetry/wire_format.hpp"
+
 namespace trainer::viewer {
 
 // A force on one node of a modal model (model frame, N): what the static correction R·F needs.
@@ -61,6 +63,9 @@ struct SceneFrame {
   std::vector<ModelState> models;            // one per scene model, scene order
   std::vector<InstrumentState> instruments;  // one per scene instrument, scene order
   std::vector<ContactArrow> contacts;
+  // The session's trainee metrics so far, when the frame carries them (wire format 1.1).
+  bool has_metrics = false;
+  telemetry::SessionMetrics metrics{};
 };
 
 }  // namespace trainer::viewer

@@ -57,6 +57,8 @@ core::Expected<void> scene_frame_from_telemetry(const SceneAssets& assets,
   out.times.sent_ns = in.send_wall_ns;
   out.times.cycle_ns = in.send_wall_ns - (in.send_time_ns - in.cycle_time_ns);
   out.latched_faults = in.latched_faults;
+  out.has_metrics = in.has_metrics;
+  if (in.has_metrics) out.metrics = in.metrics;
   out.models.resize(models.size());
   for (std::size_t i = 0; i < models.size(); ++i) {
     const telemetry::ModelState& state = *telemetry::find_model(in, static_cast<std::uint8_t>(i));

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -31,6 +32,42 @@ std::string read_metrics_file(const std::string& path) {
 
 }  // namespace
 
+std::string stream_metrics_json(const telemetry::SessionMetrics& m,
+                                const std::vector<std::string>& instrument_names) {
+  const auto rounded = [](double value, double unit) {
+    return std::round(value * unit * 1000.0) / 1000.0;
+  };
+  nlohmann::json out;
+  const bool started = (m.flags & telemetry::kMetricsTaskStarted) != 0;
+  const bool completed = (m.flags & telemetry::kMetricsTaskCompleted) != 0;
+  out["task"] = completed ? "completed" : (started ? "in progress" : "not started");
+  out["task_time_s"] = rounded(m.task_time_s, 1.0);
+  out["session_time_s"] = rounded(m.session_time_s, 1.0);
+  out["above_safe_force_s"] = rounded(m.time_above_safe_s, 1.0);
+  out["damage_impulse_n_s"] = rounded(m.damage_impulse_n_s, 1.0);
+  if ((m.flags & telemetry::kMetricsInsertionGoal) != 0) {
+    out["insertion_depth_mm"] = rounded(m.insertion_depth_m, 1e3);
+    if ((m.flags & telemetry::kMetricsTargetReached) != 0)
+      out["time_to_target_s"] = rounded(m.time_to_target_s, 1.0);
+    else
+      out["time_to_target_s"] = "not reached";
+  }
+  for (std::size_t i = 0; i < m.instrument_count && i < telemetry::kMaxInstruments; ++i) {
+    const telemetry::InstrumentMetrics& t = m.instruments[i];
+    const std::string name =
+        i < instrument_names.size() ? instrument_names[i] : "instrument " + std::to_string(i);
+    out[name] = {{"path_mm", rounded(t.path_length_m, 1e3)},
+                 {"movements", t.movements},
+                 {"idle_s", rounded(t.idle_time_s, 1.0)},
+                 {"peak_force_n", rounded(t.peak_force_n, 1.0)},
+                 {"mean_contact_force_n", rounded(t.mean_contact_force_n, 1.0)},
+                 {"above_safe_force_s", rounded(t.time_above_safe_s, 1.0)},
+                 {"grasps", t.grasps},
+                 {"slips", t.slips}};
+  }
+  return out.dump();
+}
+
 std::string session_json(const LoopSummary& summary, const FrameSource& source,
                          const std::string& metrics_json) {
   nlohmann::json session;
@@ -49,12 +86,14 @@ std::string session_json(const LoopSummary& summary, const FrameSource& source,
 
 LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebServer& server,
                             double seconds, const std::function<bool()>& should_stop,
-                            const std::string& metrics_file) {
+                            const std::string& metrics_file,
+                            const std::vector<std::string>& instrument_names) {
   LoopSummary summary;
   const auto start = std::chrono::steady_clock::now();
   auto next_session = start + std::chrono::seconds(1);
   auto next_playback = start;
   SceneFrame frame;
+  std::string stream_metrics = "{}";  // the newest frame's trainee metrics
   std::vector<std::byte> encoded;
   double bytes_total = 0.0;
   double reconstruct_total = 0.0;
@@ -64,7 +103,8 @@ LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebS
     if (seconds > 0.0 && summary.seconds >= seconds) break;
     if (now >= next_session) {
       next_session += std::chrono::seconds(1);
-      server.broadcast_text(session_json(summary, source, read_metrics_file(metrics_file)));
+      server.broadcast_text(session_json(
+          summary, source, metrics_file.empty() ? stream_metrics : read_metrics_file(metrics_file)));
     }
     // Playback requests from the page, and the playback state for its bar (~10 Hz, and at
     // once after a request).
@@ -87,6 +127,7 @@ LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebS
       continue;
     }
     if (!*got) continue;
+    if (frame.has_metrics) stream_metrics = stream_metrics_json(frame.metrics, instrument_names);
     auto encoded_ok = encoder.encode(frame, encoded);
     if (!encoded_ok) {
       ++summary.refused;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "frame_source.hpp"
 #include "view_frame.hpp"
@@ -24,12 +25,19 @@ struct LoopSummary {
   std::string last_error;
 };
 
-// Runs until `seconds` have passed (0: no limit) or should_stop() is true. `metrics_file`, when
-// not empty, is read once a second: its JSON object becomes the session panel's trainee metrics
-// (a file another process rewrites; missing or unparsable: the panel shows none).
+// Runs until `seconds` have passed (0: no limit) or should_stop() is true. The session panel's
+// trainee metrics: the newest frame's (the appliance computes them from every cycle; wire format
+// 1.1), instruments named by `instrument_names` (scene order); or, when `metrics_file` is not
+// empty, that file's JSON object, read once a second (a file another process rewrites; missing
+// or unparsable: the panel shows none).
 LoopSummary run_viewer_loop(FrameSource& source, ViewFrameEncoder& encoder, WebServer& server,
                             double seconds, const std::function<bool()>& should_stop,
-                            const std::string& metrics_file = {});
+                            const std::string& metrics_file = {},
+                            const std::vector<std::string>& instrument_names = {});
+
+// The panel's JSON object of a frame's trainee metrics (times in s, lengths in mm, forces in N).
+std::string stream_metrics_json(const telemetry::SessionMetrics& metrics,
+                                const std::vector<std::string>& instrument_names);
 
 void print_summary(const LoopSummary& summary, WebServer& server, const FrameSource& source);
 

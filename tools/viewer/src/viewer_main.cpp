@@ -80,7 +80,8 @@ int main(int argc, char** argv) {
   app.add_option("--pattern-rate", pattern_rate_hz, "test-pattern frame rate, Hz")
       ->check(CLI::Range(1.0, 1000.0));
   app.add_option("--metrics", metrics_file,
-                 "JSON file with the trainee metrics for the session panel (re-read every second)");
+                 "JSON file with the trainee metrics for the session panel (re-read every second), "
+                 "instead of the metrics the stream carries");
   CLI11_PARSE(app, argc, argv);
 
   auto assets = viewer::SceneAssets::load(scene_file);
@@ -145,8 +146,12 @@ int main(int argc, char** argv) {
 
   std::signal(SIGINT, viewer_on_signal);
   std::signal(SIGTERM, viewer_on_signal);
+  std::vector<std::string> instrument_names;
+  for (const viewer::InstrumentAssets& instrument : (*assets)->instruments())
+    instrument_names.push_back(instrument.name);
   viewer::LoopSummary summary = viewer::run_viewer_loop(
-      *source, encoder, **server, seconds, [] { return g_viewer_stop != 0; }, metrics_file);
+      *source, encoder, **server, seconds, [] { return g_viewer_stop != 0; }, metrics_file,
+      instrument_names);
   viewer::print_summary(summary, **server, *source);
   return 0;
 }

@@ -226,7 +226,7 @@ function updatePanel(latestCycleNs) {
       for (const [key, value] of Object.entries(object)) {
         const name = `${prefix}${key.replace(/_/g, ' ')}`;
         if (value && typeof value === 'object' && !Array.isArray(value)) add(`${name} · `, value);
-        else html += row(name, typeof value === 'number' ? fmt(value, 3) : String(value));
+        else html += row(name, typeof value === 'number' && !Number.isInteger(value) ? fmt(value, 3) : String(value));
       }
     };
     add('', metrics);

@@ -78,6 +78,10 @@ class TelemetrySender {
   using FrameSink = std::function<void(std::span<const std::byte>, const telemetry::Frame&)>;
   void set_frame_sink(FrameSink sink) { sink_ = std::move(sink); }
   bool sends() const noexcept { return fd_ >= 0; }
+  // The session's trainee metrics to carry in every frame from now on (wire format 1.1,
+  // section 18; at most as many instruments as the frame has); nullptr: none. The caller owns
+  // it and updates it on this (the supervisor) thread between sends.
+  void set_metrics(const telemetry::SessionMetrics* metrics) noexcept { metrics_ = metrics; }
   TelemetrySender(const TelemetrySender&) = delete;
   TelemetrySender& operator=(const TelemetrySender&) = delete;
 
@@ -105,6 +109,7 @@ class TelemetrySender {
   void allocate(std::uint32_t rate_hz);
   int fd_ = -1;
   FrameSink sink_;
+  const telemetry::SessionMetrics* metrics_ = nullptr;
   std::int64_t period_ns_ = 0;
   std::int64_t next_due_ns_ = 0;
   bool has_sent_ = false;
