@@ -115,25 +115,7 @@ try {
     await new Promise((r) => setTimeout(r, gapMs));
     const second = await page.screenshot({ encoding: 'base64', clip });
     cycleSecond = await page.evaluate(() => window.viewerStats.lastCycle);
-    // Decode both PNGs in the page and count the pixels that differ.
-    changed = await page.evaluate(async (a, b) => {
-      const load = async (data) => {
-        const image = new Image();
-        image.src = `data:image/png;base64,${data}`;
-        await image.decode();
-        const canvas = document.createElement('canvas');
-        canvas.width = image.width; canvas.height = image.height;
-        const context = canvas.getContext('2d');
-        context.drawImage(image, 0, 0);
-        return context.getImageData(0, 0, image.width, image.height).data;
-      };
-      const pa = await load(a), pb = await load(b);
-      let count = 0;
-      for (let i = 0; i < pa.length; i += 4) {
-        if (Math.abs(pa[i] - pb[i]) + Math.abs(pa[i + 1] - pb[i + 1]) + Math.abs(pa[i + 2] - pb[i + 2]) > 24) ++count;
-      }
-      return { count, total: pa.length / 4 };
-    }, first, second);
+    changed = await differing(first, second);  // pixels that differ, decoded in the page
     if (cycleSecond !== cycleFirst && changed.count >= 0.002 * changed.total) break;
   }
   const result = { rect: clip, cycles: [cycleFirst, cycleSecond], changedPixels: changed.count, pixels: changed.total };
