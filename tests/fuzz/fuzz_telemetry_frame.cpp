@@ -3,8 +3,9 @@
 // and UB errors (ASan+UBSan) it checks invariants:
 //  - a refusal names a byte offset inside the datagram and a detail text;
 //  - a frame the decoder accepts re-encodes to exactly the input bytes when its minor version
-//    is not newer than this reader's (a newer minor's extra bytes are skipped, so there the
-//    re-encoding must decode to the same frame).
+//    is this reader's; from an older minor (1.0 frames: the seeds) to the same bytes but for
+//    the version byte and the CRC; from a newer minor (its extra bytes are skipped) to a frame
+//    that decodes.
 // Random bytes almost never pass the magic, length and CRC checks, so each input is also
 // decoded "repaired": magic and major version set, the length field made the input's and the
 // CRC recomputed, which reaches the section, count, index and value checks.
@@ -34,10 +35,18 @@ void check(std::span<const std::byte> bytes) {
   }
   const wire::EncodeResult re = wire::encode(*frame, encoded);
   if (!re.ok()) std::abort();
-  const bool newer_minor = std::to_integer<std::uint8_t>(bytes[5]) > wire::kVersionMinor;
-  if (!newer_minor) {
-    if (re.bytes != bytes.size() || std::memcmp(encoded.data(), bytes.data(), re.bytes) != 0)
-      std::abort();
+  const std::uint8_t minor = std::to_integer<std::uint8_t>(bytes[5]);
+  if (minor <= wire::kVersionMinor) {
+    if (re.bytes != bytes.size()) std::abort();
+    if (minor < wire::kVersionMinor) {
+      // Written as this version: the same frame under the older version byte and its CRC.
+      encoded[5] = bytes[5];
+      std::memset(encoded.data() + 8, 0, 4);
+      const std::uint32_t crc = wire::crc32({encoded.data(), re.bytes});
+      for (std::size_t i = 0; i < 4; ++i)
+        encoded[8 + i] = std::byte(static_cast<std::uint8_t>(crc >> (8 * i)));
+    }
+    if (std::memcmp(encoded.data(), bytes.data(), re.bytes) != 0) std::abort();
   } else if (!wire::decode({encoded.data(), re.bytes}, *again).ok()) {
     std::abort();
   }
