@@ -22,6 +22,10 @@ constexpr std::size_t kWrenchJoints[] = {kinematics::kPitch, kinematics::kYaw,
 
 }  // namespace
 
+kinematics::InstrumentPoint tool_point(const model::ToolForce& force) noexcept {
+  return {kinematic_segment(force.segment), force.along_m};
+}
+
 float effort_limit(const hal::JointScale& scale) noexcept {
   const double limit = scale.max_effort();
   float rounded = static_cast<float>(limit);

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "haptic_stages.hpp"
+#include "trainer/app/force_command.hpp"
 #include "trainer/app/hal_taps.hpp"
 #include "trainer/app/haptic_app.hpp"
 
@@ -23,17 +24,6 @@ void hash_value(XXH3_state_t& state, const T& value) noexcept {
 
 std::array<float, 3> to_array(const Eigen::Vector3f& v) noexcept {
   return {v.x(), v.y(), v.z()};
-}
-
-// Where a point force acts on the instrument (forceps_catheter.hpp ToolForce).
-Eigen::Vector3f point_of(const kinematics::InstrumentPose& pose,
-                         const model::ToolForce& force) noexcept {
-  switch (force.segment) {
-    case model::ToolSegment::jaw0: return pose.hinge_m + force.along_m * pose.jaw_directions[0];
-    case model::ToolSegment::jaw1: return pose.hinge_m + force.along_m * pose.jaw_directions[1];
-    case model::ToolSegment::shaft:
-    default: return pose.shaft_start_m + force.along_m * pose.direction;
-  }
 }
 
 }  // namespace
@@ -136,7 +126,7 @@ void HapticApp::record_cycle() noexcept {
       const float size = force.force_n.squaredNorm();
       if (size > largest) {
         largest = size;
-        largest_point = point_of(in.pose, force);
+        largest_point = kinematics::TrocarKinematics::position(in.pose, tool_point(force));
       }
     }
     out.tip_m = to_array(in.pose.tip_m);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <string>
 
+#include "trainer/app/force_command.hpp"
 #include "trainer/kinematics/trocar_kinematics.hpp"
 
 namespace trainer::app {
@@ -52,15 +53,6 @@ telemetry::ContactKind contact_kind_of(model::ToolSegment segment) noexcept {
     case model::ToolSegment::shaft: break;
   }
   return telemetry::ContactKind::shaft;
-}
-
-kinematics::Segment kinematics_segment_of(model::ToolSegment segment) noexcept {
-  switch (segment) {
-    case model::ToolSegment::jaw0: return kinematics::Segment::jaw0;
-    case model::ToolSegment::jaw1: return kinematics::Segment::jaw1;
-    case model::ToolSegment::shaft: break;
-  }
-  return kinematics::Segment::shaft;
 }
 
 }  // namespace
@@ -152,8 +144,7 @@ void PublishStage::publish_instruments(const CycleFrame& frame,
                    f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
     }
     for (const model::ToolForce& force : instrument.point_forces()) {
-      const Eigen::Vector3f at = kinematics::TrocarKinematics::position(
-          pose, {kinematics_segment_of(force.segment), force.along_m});
+      const Eigen::Vector3f at = kinematics::TrocarKinematics::position(pose, tool_point(force));
       const Eigen::Vector3f on_tissue = -force.force_n;
       contacts.add({index, telemetry::kNoModel, contact_kind_of(force.segment),
                          publish_vec3(at), publish_vec3(on_tissue)},

@@ -56,6 +56,10 @@ struct ForceCommand {
 // joint effort) rounded down, so a command at it is never above the configured limit.
 float effort_limit(const hal::JointScale& scale) noexcept;
 
+// The point of the instrument a model's point force acts at (forceps_catheter.hpp ToolForce:
+// its segment and the distance along it), as the kinematics names it.
+kinematics::InstrumentPoint tool_point(const model::ToolForce& force) noexcept;
+
 // `pose` must come from kinematics.forward() this cycle; `instrument` indexes the supervisor's
 // per-instrument state (slew, passivity); `effort_limits` are the instrument's effort_limit()s,
 // each > 0.
