@@ -3,6 +3,7 @@
 #include <string>
 
 #include "haptic_stages.hpp"
+#include "trainer/app/compute_trace.hpp"
 #include "trainer/app/hal_taps.hpp"
 
 namespace trainer::app {
@@ -131,7 +132,9 @@ core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
   ++stats_.cycles;
   frame_.timing = timing;
   if (recorder_ != nullptr) recorder_->begin_cycle(timing);
-  runner_.run(frame_, stats_.phase_ns);
+  runner_.run(frame_, stats_);
+  if (compute_trace_ != nullptr)
+    compute_trace_->record_stages(timing.cycle_index, runner_, stats_.laps);
   if (recorder_ != nullptr) record_cycle();
   return frame_.encoders_ok ? core::Status::ok()
                             : core::Status{core::StatusCode::io_error, "encoder read failed"};

@@ -62,6 +62,55 @@ nlohmann::json step_split(const AppStats& app) {
 
 namespace {
 
+// The sub-stages of the stages the scene runs (substage_timer.hpp), each with its percentiles.
+nlohmann::json substage_split(const AppStats& app) {
+  nlohmann::json split = nlohmann::json::object();
+  for (std::size_t substage = 0; substage < kSubstageCount; ++substage) {
+    if (app.substage_ns[substage].count() == 0) continue;
+    split[kSubstageNames[substage]] = percentiles(app.substage_ns[substage]);
+  }
+  return split;
+}
+
+nlohmann::json statistics_json(const ComputeStatistics& s) {
+  return {{"count", s.count},    {"min", s.min_ns}, {"p50", s.p50_ns},  {"p99", s.p99_ns},
+          {"p99_9", s.p99_9_ns}, {"max", s.max_ns}, {"mean", s.mean_ns}};
+}
+
+std::string hash_hex(std::uint64_t hash) {
+  char text[24];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
+  return text;
+}
+
+// trainer --repeat: the per-cycle minimum compute over the runs (null otherwise).
+nlohmann::json compute_json(const RunResult& r) {
+  if (!r.compute) return nullptr;
+  const ComputeSummary& c = *r.compute;
+  nlohmann::json stages = nlohmann::json::object();
+  for (const ComputeStatistics& s : c.stages) stages[s.name] = statistics_json(s);
+  nlohmann::json substages = nlohmann::json::object();
+  for (const ComputeStatistics& s : c.substages) substages[s.name] = statistics_json(s);
+  nlohmann::json runs = nlohmann::json::array();
+  for (const ComputeRun& run : c.per_run) {
+    runs.push_back({{"cycles", run.cycles},
+                    {"final_state_hash", hash_hex(run.final_state_hash)},
+                    {"wall_time_s", run.wall_time_s},
+                    {"step_ns", statistics_json(run.step)}});
+  }
+  return {{"clock", "CLOCK_MONOTONIC"},
+          {"statistic", "per-cycle minimum over the runs"},
+          {"runs", c.runs},
+          {"cycles", c.cycles},
+          {"period_ns", c.period_ns},
+          {"identical", c.identical},
+          {"mismatch", c.mismatch},
+          {"step_ns", statistics_json(c.step)},
+          {"stages_ns", stages},
+          {"substages_ns", substages},
+          {"per_run", runs}};
+}
+
 nlohmann::json instruments_json(const RunResult& r) {
   nlohmann::json instruments = nlohmann::json::array();
   for (std::size_t i = 0; i < r.instrument_names.size(); ++i) {
@@ -324,6 +373,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"wake_latency_ns", percentiles(r.loop.wake_latency)},
       {"step_time_ns", percentiles(r.loop.step_time)},
       {"step_split_ns", step_split(r.app)},
+      {"step_substages_ns", substage_split(r.app)},
       {"period_measured_ns", percentiles(r.loop.period)},
       {"memory",
        {{"heap_allocations_after_arming", r.heap_allocations_after_arming},
@@ -376,6 +426,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"can", can_json(r)},
       {"usb", usb_json(r)},
       {"telemetry", telemetry_stream_json(r)},
+      {"compute", compute_json(r)},
   };
 }
 
@@ -434,8 +485,49 @@ void summarize_timing(const RunResult& r, std::ostream& out) {
         << microseconds(h.percentile_ns(0.99)) << "/" << microseconds(h.percentile_ns(0.999));
   }
   out << "\n";
+  bool any_substage = false;
+  for (std::size_t substage = 0; substage < kSubstageCount; ++substage) {
+    const core::LatencyHistogram& h = r.app.substage_ns[substage];
+    if (h.count() == 0) continue;
+    if (!any_substage) out << "  sub-stages p50/p99/p99.9 us:";
+    any_substage = true;
+    out << " " << kSubstageNames[substage] << " " << microseconds(h.percentile_ns(0.5)) << "/"
+        << microseconds(h.percentile_ns(0.99)) << "/" << microseconds(h.percentile_ns(0.999));
+  }
+  if (any_substage) out << "\n";
   out << "  overruns " << r.loop.overruns << ", longest streak " << r.loop.longest_overrun_streak
       << ", skipped periods " << r.loop.skipped_periods << "\n";
+}
+
+std::string statistics_line(const ComputeStatistics& s) {
+  return microseconds(s.p50_ns) + "/" + microseconds(s.p99_ns) + "/" + microseconds(s.p99_9_ns) +
+         "/" + microseconds(s.max_ns);
+}
+
+// trainer --repeat: the per-cycle minimum over the runs, and each run's own step for contrast.
+void summarize_compute_lines(const RunResult& r, std::ostream& out) {
+  if (!r.compute) return;
+  const ComputeSummary& c = *r.compute;
+  out << "  compute, per-cycle minimum of " << c.runs << " run(s) of " << c.cycles
+      << " cycles (real clock), p50/p99/p99.9/max us:\n";
+  if (!c.identical)
+    out << "  WARNING: the runs were not identical (" << c.mismatch
+        << "): the per-cycle minima mean nothing\n";
+  out << "    step " << statistics_line(c.step) << " (mean "
+      << microseconds(static_cast<std::int64_t>(c.step.mean_ns)) << ")\n";
+  out << "    stages:";
+  for (const ComputeStatistics& s : c.stages) out << " " << s.name << " " << statistics_line(s);
+  out << "\n";
+  if (!c.substages.empty()) {
+    out << "    sub-stages:";
+    for (const ComputeStatistics& s : c.substages)
+      out << " " << s.name << " " << statistics_line(s);
+    out << "\n";
+  }
+  out << "    each run's own step p50/p99.9 us:";
+  for (const ComputeRun& run : c.per_run)
+    out << " " << microseconds(run.step.p50_ns) << "/" << microseconds(run.step.p99_9_ns);
+  out << "\n";
 }
 
 void summarize_rt(const RunResult& r, std::ostream& out) {
@@ -475,6 +567,7 @@ std::string report_summary(const RunResult& r) {
       << "wall time " << r.wall_time_s << " s"
       << (r.stopped_by_signal ? " (stopped by signal)" : "") << "\n";
   summarize_timing(r, out);
+  summarize_compute_lines(r, out);
   summarize_rt(r, out);
   summarize_instruments(r, out);
   std::size_t text_modal = 0;

@@ -177,6 +177,14 @@ int main(int argc, char** argv) {
       "--overrun-streak-limit", overrun_limit,
       "Consecutive overruns that latch a fault, replacing loop.overrun_streak_limit (an "
       "emulator's stalls in the bench VM)");
+  std::uint32_t repeat = 0;
+  auto* repeat_opt = cli.add_option(
+      "--repeat", repeat,
+      "With --time simulated: run the same session N times (1-100) and report the compute time "
+      "of every cycle, step, stage and sub-stage on the real clock, as the per-cycle minimum "
+      "over the runs (the report's 'compute' section, docs/performance.md); with N > 1 the "
+      "session is not recorded (--no-record with --report-dir)");
+  repeat_opt->excludes(replay_opt);
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
   bool check_rt = false;
@@ -206,7 +214,8 @@ int main(int argc, char** argv) {
   cli.footer(
       "Run length defaults to the trainee script's length; a scene whose script never ends "
       "runs until SIGINT/SIGTERM.\nExit status: 0 run completed, 1 setup error (or a fatal RT "
-      "self-check failure), 2 usage error, 3 run completed with a fault latched.");
+      "self-check failure, or --repeat runs that were not identical), 2 usage error, 3 run "
+      "completed with a fault latched.");
   CLI11_PARSE(cli, argc, argv);
 
   if (*replay_opt) {
@@ -305,6 +314,24 @@ int main(int argc, char** argv) {
     return trainer::appliance::rt_check_failed(results) ? 1 : 0;
   }
 
+  if (*repeat_opt) {
+    if (options.time_source != trainer::app::TimeSource::simulated) {
+      std::cerr << "trainer: --repeat needs --time simulated: only a simulated-time session is "
+                   "the same session in every run\n";
+      return 2;
+    }
+    if (repeat < 1 || repeat > trainer::app::kMaxRepeatRuns) {
+      std::cerr << "trainer: --repeat " << repeat << ": expected 1 to "
+                << trainer::app::kMaxRepeatRuns << " runs\n";
+      return 2;
+    }
+    if (repeat > 1 && (*record_opt || (!report_dir.empty() && !no_record))) {
+      std::cerr << "trainer: --repeat " << repeat
+                << " cannot record the session (each run would overwrite the recording): drop "
+                   "--record, add --no-record with --report-dir, or use --repeat 1\n";
+      return 2;
+    }
+  }
   if (!report_dir.empty()) {
     if (auto made = make_report_dir(report_dir); !made) {
       std::cerr << "trainer: " << made.error().message << "\n";
@@ -320,7 +347,8 @@ int main(int argc, char** argv) {
     options.record_file = pending_recording;
   }
   const std::time_t started = std::time(nullptr);
-  auto result = trainer::app::run_trainer(options);
+  auto result = *repeat_opt ? trainer::app::run_trainer_repeated(options, repeat)
+                            : trainer::app::run_trainer(options);
   if (!result) {
     if (!pending_recording.empty()) {
       std::error_code ignored;
@@ -361,6 +389,11 @@ int main(int argc, char** argv) {
     }
     std::cout << "  report: " << report_file << "\n";
     if (!report_dir.empty()) point_latest_at(report_file);
+  }
+  if (result->compute && !result->compute->identical) {
+    std::cerr << "trainer: --repeat: the runs were not identical (" << result->compute->mismatch
+              << "): the per-cycle minima mean nothing\n";
+    return 1;
   }
   // The shutdown fault is expected at the end of every run; anything else means the run
   // ended faulted.

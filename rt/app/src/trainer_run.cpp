@@ -269,6 +269,15 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
   loop::PeriodicLoop periodic(
       *setup.clock,
       loop::LoopSettings{scene.loop.period_ns, scene.loop.overrun_streak_limit, setup.cycles});
+  // Simulated time: the step is timed on the real clock (the manual clock does not move
+  // during a cycle), as the stage split is.
+  core::MonotonicClock step_clock;
+  if (options.time_source == TimeSource::simulated) periodic.set_step_clock(&step_clock);
+  if (options.compute_trace != nullptr) {
+    options.compute_trace->prepare(static_cast<std::size_t>(setup.cycles));
+    periodic.set_step_trace(options.compute_trace->step_ns());
+    haptic.set_compute_trace(options.compute_trace);
+  }
   if (options.arm) haptic.request_reset();
   loop::RtRequest request;
   request.priority = scene.loop.priority;
@@ -300,6 +309,7 @@ core::Expected<void> run_loop(const RunOptions& options, RunSetup& setup,
     if (setup.taps) setup.taps->finish();  // the last cycle's record, before shutdown's writes
     result.heap_allocations_after_arming = core::alloc::counted_allocations() - before;
     core::alloc::end_counting_this_thread();
+    result.final_state_hash = haptic.state_hash();
     record_safety(haptic.safety(), result);
     haptic.shutdown();
     finished.store(true, std::memory_order_release);

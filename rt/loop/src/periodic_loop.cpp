@@ -49,13 +49,18 @@ void PeriodicLoop::run(CycleTask& task, const std::atomic<bool>& stop) noexcept 
                          : static_cast<double>(wake_ns - previous_wake_ns) * kSecondsPerNanosecond,
         overrun_streak};
 
+    const std::int64_t step_start_ns = step_clock_ != nullptr ? step_clock_->now_ns() : wake_ns;
     const core::Status status = task.run_cycle(timing);
+    const std::int64_t step_end_ns = step_clock_ != nullptr ? step_clock_->now_ns() : 0;
     const std::int64_t end_ns = clock_.now_ns();
+    const std::int64_t step_ns =
+        step_clock_ != nullptr ? step_end_ns - step_start_ns : end_ns - wake_ns;
 
     ++stats_.cycles;
     if (!status.is_ok()) ++stats_.cycle_errors;
     stats_.wake_latency.record(wake_ns - deadline_ns);
-    stats_.step_time.record(end_ns - wake_ns);
+    stats_.step_time.record(step_ns);
+    if (cycle_index < step_trace_.size()) step_trace_[cycle_index] = step_ns;
     if (cycle_index > 0) stats_.period.record(wake_ns - previous_wake_ns);
 
     const std::int64_t late_ns = end_ns - deadline_ns;

@@ -69,3 +69,34 @@ print(f"cbd insertion: peak depth {insertion['peak_depth_m'] * 1e3:.1f} mm (targ
       f"duct peak {load['peak_force_n']:.3f} N mean {load['mean_force_n']:.3f} N, "
       f"left peak {left['peak_force_n']:.3f} N, right peak {right['peak_force_n']:.3f} N, no heap, no faults")
 PY
+
+# Issue 19's measurement: the sub-stages of the modal and catheter stages in the report (one
+# sample per cycle each; a stage's mean holds its sub-stages' means), and a short --repeat run
+# whose per-cycle minima keep the same order (step >= its stages >= their sub-stages).
+"$trainer" --scene "$scene" --hal sim --time simulated --repeat 2 --cycles 3000 \
+  --report "$work/repeat.json" >"$work/repeat.txt" 2>&1 \
+  || { echo "trainer --repeat failed"; cat "$work/repeat.txt"; exit 1; }
+python3 - "$work/run.json" "$work/repeat.json" <<'PY'
+import json, sys
+run = json.load(open(sys.argv[1]))
+repeat = json.load(open(sys.argv[2]))
+modal = ["modal_near", "modal_collision", "modal_solve", "modal_step", "modal_reconstruct", "modal_refit"]
+catheter = ["catheter_walls", "catheter_tools", "catheter_step", "catheter_reactions"]
+sub = run["step_substages_ns"]
+assert set(sub) == set(modal + catheter), sub
+for name in modal + catheter:
+    assert sub[name]["count"] == run["cycles"], (name, sub[name])
+split = run["step_split_ns"]
+for stage, names in (("modal_models", modal), ("catheters", catheter)):
+    assert split[stage]["mean"] >= sum(sub[n]["mean"] for n in names), (stage, split[stage], sub)
+    assert sub[names[0]]["mean"] > 0, sub
+assert run["step_time_ns"]["mean"] >= sum(s["mean"] for s in split.values()), (run["step_time_ns"], split)
+c = repeat["compute"]
+assert c["runs"] == 2 and c["cycles"] == 3000 and c["identical"], c
+assert set(c["substages_ns"]) == set(modal + catheter), c["substages_ns"]
+assert c["step_ns"]["mean"] >= sum(s["mean"] for s in c["stages_ns"].values()), c
+for stage, names in (("modal_models", modal), ("catheters", catheter)):
+    assert c["stages_ns"][stage]["mean"] >= sum(c["substages_ns"][n]["mean"] for n in names), (stage, c)
+assert repeat["memory"]["heap_allocations_after_arming"] == 0, repeat["memory"]
+print(f"cbd compute: step per-cycle minimum p50 {c['step_ns']['p50'] / 1e3:.1f} us over 2 x 3000 cycles")
+PY

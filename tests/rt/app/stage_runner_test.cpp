@@ -1,6 +1,7 @@
 // The stage runner: stages run in DESIGN.md's order and only in it, each timed into its own
 // phase on the runner's clock; the wall scene's app runs exactly the stages it needs.
 #include <array>
+#include <memory>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -47,17 +48,78 @@ TEST(StageRunner, RunsStagesInOrderAndTimesEachIntoItsPhase) {
   EXPECT_FALSE(runner.has(CyclePhase::modal_models));
 
   CycleFrame frame;
-  std::array<core::LatencyHistogram, kCyclePhaseCount> phase_ns{};
-  for (int cycle = 0; cycle < 4; ++cycle) runner.run(frame, phase_ns);
+  auto stats = std::make_unique<AppStats>();
+  for (int cycle = 0; cycle < 4; ++cycle) runner.run(frame, *stats);
   EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2}));
   const auto phase = [&](CyclePhase p) -> const core::LatencyHistogram& {
-    return phase_ns[static_cast<std::size_t>(p)];
+    return stats->phase_ns[static_cast<std::size_t>(p)];
   };
   EXPECT_EQ(phase(CyclePhase::hal_read).count(), 4U);
   EXPECT_EQ(phase(CyclePhase::hal_read).max_ns(), 1000);
   EXPECT_EQ(phase(CyclePhase::forces).min_ns(), 5000);
   EXPECT_EQ(phase(CyclePhase::publish).max_ns(), 300);
   EXPECT_EQ(phase(CyclePhase::modal_models).count(), 0U);  // not run, nothing recorded
+  for (const core::LatencyHistogram& substage : stats->substage_ns)
+    EXPECT_EQ(substage.count(), 0U);  // no stage with sub-stages ran
+}
+
+// A stage with sub-stages: each lap takes the time since the stage's start or the previous
+// lap; laps of one sub-stage add up within a cycle; a sub-stage skipped in a cycle records 0.
+class LappingStage final : public CycleStage {
+ public:
+  LappingStage(core::ManualClock& clock, AppStats& stats) : clock_(clock), stats_(stats) {}
+  void run(CycleFrame& /*frame*/) noexcept override {
+    clock_.advance_ns(100);
+    stats_.laps.lap(Substage::modal_near);
+    if (with_collision_) {
+      clock_.advance_ns(700);
+      stats_.laps.lap(Substage::modal_collision);
+    }
+    clock_.advance_ns(200);
+    stats_.laps.lap(Substage::modal_reconstruct);
+    clock_.advance_ns(50);
+    stats_.laps.lap(Substage::modal_reconstruct);
+    clock_.advance_ns(30);  // after the last lap: in the stage's time only
+  }
+  bool with_collision_ = true;
+
+ private:
+  core::ManualClock& clock_;
+  AppStats& stats_;
+};
+
+TEST(StageRunner, LapsSplitAStageIntoItsSubstages) {
+  core::ManualClock clock(0);
+  auto stats = std::make_unique<AppStats>();
+  LappingStage modal(clock, *stats);
+  StageRunner runner(clock);
+  ASSERT_TRUE(runner.add(CyclePhase::modal_models, modal));
+  EXPECT_EQ(phase_of(Substage::modal_refit), CyclePhase::modal_models);
+  EXPECT_EQ(phase_of(Substage::catheter_step), CyclePhase::catheters);
+  CycleFrame frame;
+  runner.run(frame, *stats);
+  const auto substage = [&](Substage s) -> const core::LatencyHistogram& {
+    return stats->substage_ns[static_cast<std::size_t>(s)];
+  };
+  EXPECT_EQ(stats->laps.last_ns(Substage::modal_near), 100);
+  EXPECT_EQ(stats->laps.last_ns(Substage::modal_collision), 700);
+  EXPECT_EQ(stats->laps.last_ns(Substage::modal_reconstruct), 250);
+  EXPECT_EQ(stats->laps.last_ns(Substage::modal_solve), 0);
+  EXPECT_EQ(runner.last_ns(CyclePhase::modal_models), 1080);
+  modal.with_collision_ = false;
+  runner.run(frame, *stats);
+  EXPECT_EQ(stats->laps.last_ns(Substage::modal_collision), 0);
+  // Every modal sub-stage has one sample per cycle; the catheter's none (no catheter stage).
+  EXPECT_EQ(substage(Substage::modal_collision).count(), 2U);
+  EXPECT_EQ(substage(Substage::modal_collision).max_ns(), 700);
+  EXPECT_EQ(substage(Substage::modal_collision).min_ns(), 0);
+  EXPECT_EQ(substage(Substage::modal_refit).count(), 2U);
+  EXPECT_EQ(substage(Substage::modal_refit).max_ns(), 0);
+  EXPECT_EQ(substage(Substage::catheter_step).count(), 0U);
+  // A lap outside a runner (a stage run directly) does nothing.
+  stats->laps.begin_cycle();
+  modal.run(frame);
+  EXPECT_EQ(stats->laps.touched(), 0U);
 }
 
 TEST(StageRunner, RefusesAPhaseOutOfOrderOrTwice) {

@@ -373,6 +373,52 @@ TEST(PeriodicLoop, HistogramsHoldAKnownSequence) {
   EXPECT_EQ(period.max_ns(), kLongPeriodNs + 1'000);
 }
 
+// A separate step clock (the trainer's real clock in simulated time): step_time and the step
+// trace come from it; deadlines and overruns stay on the loop's clock.
+class TwoClockTask final : public CycleTask {
+ public:
+  TwoClockTask(core::ManualClock& loop_clock, core::ManualClock& step_clock)
+      : loop_clock_(loop_clock), step_clock_(step_clock) {}
+  core::Status run_cycle(const CycleTiming& timing) noexcept override {
+    step_clock_.advance_ns(static_cast<std::int64_t>(timing.cycle_index + 1) * 10'000);
+    // The loop's clock overruns in cycle 1 only (2.5 periods).
+    if (timing.cycle_index == 1) loop_clock_.advance_ns(kPeriodNs * 5 / 2);
+    return core::Status::ok();
+  }
+  void on_overrun_fault(std::uint32_t /*streak*/) noexcept override {}
+
+ private:
+  core::ManualClock& loop_clock_;
+  core::ManualClock& step_clock_;
+};
+
+TEST(PeriodicLoop, AStepClockTimesTheStepAndFillsTheTrace) {
+  core::ManualClock clock(kStartNs);
+  core::ManualClock step_clock(0);
+  TwoClockTask task(clock, step_clock);
+  PeriodicLoop loop(clock, settings(5));
+  loop.set_step_clock(&step_clock);
+  std::vector<std::int64_t> trace(3, -1);
+  loop.set_step_trace(trace);
+  const std::atomic<bool> stop{false};
+  loop.run(task, stop);
+  EXPECT_EQ(loop.stats().cycles, 5U);
+  EXPECT_EQ(loop.stats().overruns, 1U);  // on the loop's clock
+  EXPECT_EQ(loop.stats().skipped_periods, 2U);
+  const core::LatencyHistogram& step = loop.stats().step_time;
+  EXPECT_EQ(step.count(), 5U);
+  EXPECT_EQ(step.min_ns(), 10'000);  // the step clock's, not the loop clock's 2.5 periods
+  EXPECT_EQ(step.max_ns(), 50'000);
+  EXPECT_EQ(trace, (std::vector<std::int64_t>{10'000, 20'000, 30'000}));  // cycles 3, 4: no room
+
+  // Without a step clock the trace holds the loop clock's step (0 here but in cycle 1).
+  PeriodicLoop plain(clock, settings(3));
+  std::vector<std::int64_t> plain_trace(3, -1);
+  plain.set_step_trace(plain_trace);
+  plain.run(task, stop);
+  EXPECT_EQ(plain_trace, (std::vector<std::int64_t>{0, kPeriodNs * 5 / 2, 0}));
+}
+
 TEST(PeriodicLoop, RunMakesNoHeapAllocationsOver100000Cycles) {
   ASSERT_TRUE(core::alloc::hooks_installed());
   core::ManualClock clock(kStartNs);

@@ -181,8 +181,10 @@ void CatheterStage::step_catheter(std::size_t index, CycleFrame& frame) noexcept
   model::Catheter& catheter = *state.catheter;
   std::size_t plane_count = 0;
   bool ok = add_wall_planes(index, plane_count);
+  stats_->laps.lap(Substage::catheter_walls);
   const std::size_t wall_plane_end = plane_count;
   ok = add_tool_planes(state, frame.instruments, plane_count) && ok;
+  stats_->laps.lap(Substage::catheter_tools);
   if (!catheter.set_contact_planes(state.planes.first(plane_count)).is_ok()) ok = false;
   catheter.clear_forces();
   if (state.has_gravity) {
@@ -191,9 +193,11 @@ void CatheterStage::step_catheter(std::size_t index, CycleFrame& frame) noexcept
     }
   }
   ok = catheter.step(period_s_).is_ok() && ok;
+  stats_->laps.lap(Substage::catheter_step);
   return_wall_reactions(index, wall_plane_end);
   ok = return_tool_forces(state, frame.instruments) && ok;
   track_insertion(index);
+  stats_->laps.lap(Substage::catheter_reactions);
   if (!ok) ++stats_->model_step_errors;
 }
 

@@ -124,7 +124,9 @@ void ModalStage::refresh_surface(ModalModelState& state) noexcept {
   if (!state.model->reconstruct(surface.deformed).is_ok()) return;
   for (std::size_t i = 0; i < surface.deformed.size(); ++i)
     surface.deformed[i] += surface.rest_positions[i];
+  stats_->laps.lap(Substage::modal_reconstruct);
   (void)surface.refit_grid();
+  stats_->laps.lap(Substage::modal_refit);
 }
 
 void ModalStage::run_model(std::size_t index, CycleFrame& frame) noexcept {
@@ -136,12 +138,15 @@ void ModalStage::run_model(std::size_t index, CycleFrame& frame) noexcept {
   Vec3 tool_total = Vec3::Zero();
   bool tool_touching = false;
   const bool near = anything_near(state, frame.instruments);
+  stats_->laps.lap(Substage::modal_near);
   if (near && !state.surface.surface_ready) refresh_surface(state);
   if (near && state.surface.surface_ready) {
     ModalTargets targets{};
     gather_tip_targets(state, frame.instruments, targets, stats_->model_step_errors);
     gather_segment_targets(state, frame.instruments, targets, stats_->model_step_errors);
+    stats_->laps.lap(Substage::modal_collision);
     tool_total = solve_contacts(state, targets, frame.instruments, tool_touching);
+    stats_->laps.lap(Substage::modal_solve);
   }
   const Vec3 total = tool_total + catheter_total;
   if (tool_touching) ++model_stats.tool_contact_cycles;
@@ -152,6 +157,7 @@ void ModalStage::run_model(std::size_t index, CycleFrame& frame) noexcept {
     model_stats.peak_force_n = std::max(model_stats.peak_force_n, magnitude);
   }
   if (!modal.step().is_ok()) ++stats_->model_step_errors;
+  stats_->laps.lap(Substage::modal_step);
   if (near) {
     refresh_surface(state);
   } else {

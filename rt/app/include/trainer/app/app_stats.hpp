@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "trainer/app/substage_timer.hpp"
 #include "trainer/app/telemetry.hpp"  // kMaxInstruments
 #include "trainer/core/histogram.hpp"
 
@@ -86,6 +87,12 @@ inline constexpr std::array<const char*, kCyclePhaseCount> kCyclePhaseNames = {
 struct AppStats {
   std::uint64_t cycles = 0;
   std::array<core::LatencyHistogram, kCyclePhaseCount> phase_ns{};
+  // Finer than the phases (substage_timer.hpp): one sample per cycle for each sub-stage of the
+  // stages the scene runs, none for the others.
+  std::array<core::LatencyHistogram, kSubstageCount> substage_ns{};
+  // The live lap timer the stages call (stats_->laps.lap(Substage::x)); the stage runner
+  // marks each stage's start and records the cycle's laps into substage_ns. Not a statistic.
+  SubstageTimer laps;
   std::uint64_t hal_read_errors = 0;
   std::uint64_t hal_write_errors = 0;
   std::uint64_t invalid_encoder_cycles = 0;

@@ -38,6 +38,7 @@ namespace trainer::app {
 
 class HapticStages;  // the stage objects (rt/app/src/haptic_stages.hpp)
 class HalTaps;       // the session recording's HAL taps (hal_taps.hpp)
+class CycleTimeTrace;  // per-cycle compute times (compute_trace.hpp)
 
 class HapticApp final : public loop::CycleTask {
   // The property test (tests/rt/app/haptic_app_property_test.cpp) puts the models in random
@@ -63,6 +64,9 @@ class HapticApp final : public loop::CycleTask {
   // hal_taps.hpp): each cycle opens a record, the taps fill in what the HAL returned, the app
   // adds the reset taken, the latched faults, the state hash and the derived block.
   void set_recorder(HalTaps* taps) noexcept { recorder_ = taps; }
+  // Setup path: write every cycle's stage and sub-stage times into `trace` (trainer --repeat;
+  // sized before arming, nullptr: none).
+  void set_compute_trace(CycleTimeTrace* trace) noexcept { compute_trace_ = trace; }
   // XXH3-64 of the state that determines future outputs (docs/recording.md "State hash"):
   // modal coordinates, velocities, accelerations and pending catheter loads; tensor
   // displacements and contact state; catheter particles and velocities; the instruments'
@@ -111,6 +115,7 @@ class HapticApp final : public loop::CycleTask {
   std::unique_ptr<HapticStages> stages_;
   StageRunner runner_{stage_clock_};
   HalTaps* recorder_ = nullptr;
+  CycleTimeTrace* compute_trace_ = nullptr;
   // The models' force sums at the last recorded cycle (modal, then tensor, in scene order):
   // their increase is this cycle's force on each model (the record's contact_model).
   std::array<double, 2 * kMaxSceneModels> recorded_force_sums_{};

@@ -9,7 +9,7 @@
 
 namespace trainer::app {
 
-inline constexpr int kReportSchemaVersion = 1;
+inline constexpr int kReportSchemaVersion = 2;
 
 nlohmann::json report_json(const RunResult& result);
 std::string report_summary(const RunResult& result);

@@ -4,7 +4,9 @@
 // never calls another; what one stage leaves for the next is in the CycleFrame.
 //
 // Timing uses the clock given at construction (the trainer gives the real monotonic clock, so
-// the split means the same in simulated time); one clock read per stage boundary.
+// the split means the same in simulated time); one clock read per stage boundary. The same
+// read marks the start of the stage for its sub-stage laps (AppStats::laps, substage_timer.hpp),
+// which use the same clock.
 #pragma once
 
 #include <array>
@@ -32,9 +34,9 @@ class StageRunner {
   // order (a phase before one already added): the list is DESIGN.md's order, not the caller's.
   bool add(CyclePhase phase, CycleStage& stage) noexcept;
 
-  // RT path: every stage in order, each timed into phase_ns[phase].
-  void run(CycleFrame& frame,
-           std::array<core::LatencyHistogram, kCyclePhaseCount>& phase_ns) noexcept;
+  // RT path: every stage in order, each timed into stats.phase_ns[phase]; the stages' laps
+  // into stats.substage_ns.
+  void run(CycleFrame& frame, AppStats& stats) noexcept;
 
   std::size_t stage_count() const noexcept { return count_; }
   bool has(CyclePhase phase) const noexcept;
@@ -43,6 +45,8 @@ class StageRunner {
   std::int64_t last_ns(CyclePhase phase) const noexcept {
     return last_ns_[static_cast<std::size_t>(phase)];
   }
+  // The sub-stages of the stages added (bit k = Substage k): recorded every cycle.
+  std::uint32_t substage_mask() const noexcept { return substage_mask_; }
 
  private:
   struct Entry {
@@ -53,6 +57,10 @@ class StageRunner {
   std::array<Entry, kCyclePhaseCount> stages_{};
   std::array<std::int64_t, kCyclePhaseCount> last_ns_{};
   std::size_t count_ = 0;
+  std::uint32_t substage_mask_ = 0;
 };
+
+// The stage whose code a sub-stage times.
+CyclePhase phase_of(Substage substage) noexcept;
 
 }  // namespace trainer::app

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "trainer/app/compute_trace.hpp"
 #include "trainer/app/haptic_app.hpp"
 #include "trainer/app/telemetry_sender.hpp"
 #include "trainer/appliance/rt_check.hpp"
@@ -64,6 +65,9 @@ struct RunOptions {
   std::optional<std::filesystem::path> record_file;
   // Receives formatted log lines drained from the RT log ring (default: stderr).
   std::function<void(const std::string&)> on_log;
+  // Every cycle's real-clock step, stage and sub-stage times go into this trace, sized by the
+  // run before arming (run_trainer_repeated; nullptr: none).
+  CycleTimeTrace* compute_trace = nullptr;
 };
 
 struct RunResult {
@@ -118,8 +122,29 @@ struct RunResult {
   std::string usb_faults;
   // The telemetry stream's counters ([telemetry] enabled only).
   std::optional<TelemetrySenderStats> telemetry_stream;
+  // The app's state hash (docs/recording.md) when the loop ended, before shutdown: equal
+  // for runs of the same session in simulated time.
+  std::uint64_t final_state_hash = 0;
+  // run_trainer_repeated only: the per-cycle minimum compute over the runs.
+  std::optional<ComputeSummary> compute;
 };
 
+// In simulated time the loop's clock is a manual clock; the step time (run_cycle) is timed on
+// the real monotonic clock, like the stage split, so both are the cycle's real compute time
+// (the wake-up latency and the measured period stay on the manual clock: 0 and the period).
 core::Expected<RunResult> run_trainer(const RunOptions& options);
+
+// Runs at most this many times in one --repeat series.
+inline constexpr std::uint32_t kMaxRepeatRuns = 100;
+
+// trainer --repeat N (issue 19): the same simulated-time session `runs` times, each exactly as
+// run_trainer runs it once (fresh device, app and arena), every cycle's real-clock step, stage
+// and sub-stage times kept (buffers sized before arming); the result is the last run's, with
+// `compute`: per cycle the minimum over the runs, and its percentiles. The runs must be
+// identical (cycles, final state hash, faults, armed cycles): compute.identical says whether
+// they were. Errors: real time (not deterministic), runs outside 1..kMaxRepeatRuns, a
+// recording with runs > 1 (each run would overwrite it), any run's setup error (named "run k
+// of N"). A stop signal ends the series after the run it interrupted, which is not folded.
+core::Expected<RunResult> run_trainer_repeated(const RunOptions& options, std::uint32_t runs);
 
 }  // namespace trainer::app

@@ -21,10 +21,20 @@
 //   * the next cycle runs with the measured dt (wake to wake), not the nominal period, so
 //     integrators in the task see the time that really passed.
 // A non-ok Status from run_cycle is only counted (cycle_errors): the task owns its faults.
+//
+// Step time
+// ---------
+// step_time is run_cycle's duration on the loop's clock, unless a separate step clock is set
+// (set_step_clock): then on that one. The trainer sets the real monotonic clock in simulated
+// time, where the loop's clock is a manual clock that does not move during a cycle, so the
+// step time is the cycle's real compute time there too; deadlines, overruns, wake-up latency
+// and period stay on the loop's clock (deterministic: 0 latency, the nominal period, no
+// overrun in simulated time).
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <span>
 
 #include "trainer/core/clock.hpp"
 #include "trainer/core/expected.hpp"
@@ -76,7 +86,7 @@ struct LoopStats {
   bool overrun_fault = false;             // the streak limit was reached during this run
   std::uint64_t overrun_fault_cycle = 0;  // cycle_index in which it was reached
   core::LatencyHistogram wake_latency;    // wake_ns - deadline_ns
-  core::LatencyHistogram step_time;       // end of run_cycle - wake_ns
+  core::LatencyHistogram step_time;       // run_cycle's duration (on the step clock if set)
   core::LatencyHistogram period;          // wake_ns - previous wake_ns (cycle 1 onward)
 };
 
@@ -93,6 +103,14 @@ class PeriodicLoop {
   // sizeof(LoopStats) (~30 KiB) of stack once at entry, to reset the statistics.
   void run(CycleTask& task, const std::atomic<bool>& stop) noexcept;
 
+  // Setup path, before run(): time run_cycle on `clock` instead of the loop's clock (nullptr:
+  // the loop's clock). The clock must outlive the loop's runs.
+  void set_step_clock(core::Clock* clock) noexcept { step_clock_ = clock; }
+  // Setup path, before run(): every cycle's step time (ns) also goes to step_trace[cycle_index]
+  // while cycle_index < step_trace.size() (trainer --repeat's per-cycle record). The buffer
+  // must outlive the loop's runs; nothing is allocated.
+  void set_step_trace(std::span<std::int64_t> step_trace) noexcept { step_trace_ = step_trace; }
+
   // Read it after run() returned (or from the thread running it): not synchronised.
   const LoopStats& stats() const noexcept { return stats_; }
   const LoopSettings& settings() const noexcept { return settings_; }
@@ -100,6 +118,8 @@ class PeriodicLoop {
  private:
   core::Clock& clock_;
   LoopSettings settings_;
+  core::Clock* step_clock_ = nullptr;
+  std::span<std::int64_t> step_trace_;
   LoopStats stats_{};
 };
 
