@@ -6,6 +6,8 @@
 //
 //   BM_SceneCycle/<scene>         the full cycle (run_cycle: HAL read, with the simulated
 //                                 plant's integration, to publish), one iteration per cycle
+//   BM_SceneCycle/cbd_10khz       the same at 10 kHz: the scene's loop period replaced by
+//                                 100 µs as `trainer --period-us 100` does (issue 19's goal)
 //   BM_CbdStage/<stage>           the cbd cycle again, each iteration timed as one stage alone
 //                                 (the StageRunner's own clock reads, as the report's split)
 //   BM_SceneCycleRecorded/cbd     the full cycle with the session recording on (HAL taps, state
@@ -40,12 +42,21 @@ using namespace trainer;
 // One scene on the simulated bench in simulated time, armed, from cycle 0 to the script's end.
 class SceneSession {
  public:
+  // period_us > 0 replaces the scene's loop.period_us (trainer --period-us).
   static std::unique_ptr<SceneSession> open(const std::string& scene_file, std::string& error,
-                                            bool record = false) {
+                                            bool record = false, std::int64_t period_us = 0) {
     auto scene = config::load_scene(std::string(TRAINER_SOURCE_DIR) + "/" + scene_file);
     if (!scene) {
       error = scene.error().message;
       return nullptr;
+    }
+    if (period_us > 0) {
+      config::LoopOverrides overrides;
+      overrides.period_us = period_us;
+      if (auto replaced = config::apply_loop_overrides(scene->loop, overrides); !replaced) {
+        error = replaced.error().message;
+        return nullptr;
+      }
     }
     std::unique_ptr<SceneSession> session(new SceneSession(std::move(*scene)));
     if (auto started = session->start(record); !started) {
@@ -130,9 +141,9 @@ enum class Timed : std::uint8_t { cycle, state_hash, record_push };
 
 void run_sessions(benchmark::State& state, const std::string& scene_file,
                   std::optional<app::CyclePhase> stage, bool record = false,
-                  Timed timed = Timed::cycle) {
+                  Timed timed = Timed::cycle, std::int64_t period_us = 0) {
   std::string error;
-  auto session = SceneSession::open(scene_file, error, record);
+  auto session = SceneSession::open(scene_file, error, record, period_us);
   if (!session) {
     state.SkipWithError(
         (error + " (build the images: modelc build --scene " + scene_file + ")").c_str());
@@ -146,7 +157,7 @@ void run_sessions(benchmark::State& state, const std::string& scene_file,
     if (session->finished()) {
       state.PauseTiming();
       session.reset();
-      session = SceneSession::open(scene_file, error, record);
+      session = SceneSession::open(scene_file, error, record, period_us);
       ++sessions;
       state.ResumeTiming();
       if (!session) {
@@ -188,12 +199,19 @@ void run_sessions(benchmark::State& state, const std::string& scene_file,
 // Three whole sessions of each scene's script (cbd 11 s, liver 16 s, wall 10 s at 1 kHz).
 constexpr std::int64_t kCbdIterations = 3 * 11'000;
 
-void BM_SceneCycle(benchmark::State& state, const std::string& scene_file) {
-  run_sessions(state, scene_file, std::nullopt);
+void BM_SceneCycle(benchmark::State& state, const std::string& scene_file,
+                   std::int64_t period_us = 0) {
+  run_sessions(state, scene_file, std::nullopt, false, Timed::cycle, period_us);
 }
 BENCHMARK_CAPTURE(BM_SceneCycle, cbd, std::string("config/scenes/cbd.toml"))
     ->UseManualTime()
     ->Iterations(kCbdIterations)
+    ->Unit(benchmark::kMicrosecond);
+// 10 kHz: the same scripted session is ten times as many cycles (3 × 110,000).
+BENCHMARK_CAPTURE(BM_SceneCycle, cbd_10khz, std::string("config/scenes/cbd.toml"),
+                  std::int64_t{100})
+    ->UseManualTime()
+    ->Iterations(10 * kCbdIterations)
     ->Unit(benchmark::kMicrosecond);
 void BM_SceneCycleRecorded(benchmark::State& state, const std::string& scene_file) {
   run_sessions(state, scene_file, std::nullopt, true);

@@ -95,4 +95,27 @@ ComputeSummary summarize_compute(const CycleTimeTrace& minimum, std::size_t cycl
   return summary;
 }
 
+void write_compute_csv(const ComputeSummary& summary, std::ostream& out) {
+  if (!summary.per_cycle_minimum) return;
+  const CycleTimeTrace& minimum = *summary.per_cycle_minimum;
+  std::vector<std::size_t> columns{kStepColumn};
+  for (std::size_t column = kFirstPhaseColumn; column < kComputeColumns; ++column) {
+    const char* name = compute_column_name(column);
+    const auto named = [&](const ComputeStatistics& s) { return s.name == name; };
+    if (std::any_of(summary.stages.begin(), summary.stages.end(), named) ||
+        std::any_of(summary.substages.begin(), summary.substages.end(), named)) {
+      columns.push_back(column);
+    }
+  }
+  out << "cycle";
+  for (std::size_t column : columns) out << ',' << compute_column_name(column);
+  out << '\n';
+  const std::size_t cycles = std::min<std::size_t>(summary.cycles, minimum.cycles());
+  for (std::size_t k = 0; k < cycles; ++k) {
+    out << k;
+    for (std::size_t column : columns) out << ',' << minimum.column(column)[k];
+    out << '\n';
+  }
+}
+
 }  // namespace trainer::app

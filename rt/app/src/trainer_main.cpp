@@ -185,6 +185,11 @@ int main(int argc, char** argv) {
       "over the runs (the report's 'compute' section, docs/performance.md); with N > 1 the "
       "session is not recorded (--no-record with --report-dir)");
   repeat_opt->excludes(replay_opt);
+  std::string compute_csv;
+  cli.add_option("--compute-csv", compute_csv,
+                 "With --repeat: write the per-cycle minimum (ns: step, each stage and "
+                 "sub-stage) of every cycle to this CSV file")
+      ->needs(repeat_opt);
   cli.add_flag("--no-arm", no_arm, "Do not issue the reset that arms the safety chain");
   cli.add_flag("--no-rt", no_rt, "Do not request SCHED_FIFO, CPU affinity or mlockall");
   bool check_rt = false;
@@ -389,6 +394,16 @@ int main(int argc, char** argv) {
     }
     std::cout << "  report: " << report_file << "\n";
     if (!report_dir.empty()) point_latest_at(report_file);
+  }
+  if (!compute_csv.empty() && result->compute) {
+    std::ofstream csv(compute_csv);
+    trainer::app::write_compute_csv(*result->compute, csv);
+    csv.close();
+    if (!csv) {
+      std::cerr << "trainer: cannot write '" << compute_csv << "'\n";
+      return 1;
+    }
+    std::cout << "  per-cycle minima: " << compute_csv << "\n";
   }
   if (result->compute && !result->compute->identical) {
     std::cerr << "trainer: --repeat: the runs were not identical (" << result->compute->mismatch

@@ -1,6 +1,7 @@
 // trainer --repeat N: the same simulated-time session N times, folded into the per-cycle
 // minimum compute (compute_trace.hpp says why).
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -54,7 +55,8 @@ core::Expected<RunResult> run_trainer_repeated(const RunOptions& options, std::u
                             "recording): use --no-record, or --repeat 1");
   }
   CycleTimeTrace trace;
-  CycleTimeTrace minimum;
+  auto minimum_trace = std::make_shared<CycleTimeTrace>();
+  CycleTimeTrace& minimum = *minimum_trace;
   std::vector<ComputeRun> per_run;
   std::optional<RunResult> first;
   std::optional<RunResult> last;
@@ -96,6 +98,7 @@ core::Expected<RunResult> run_trainer_repeated(const RunOptions& options, std::u
     compute.identical = mismatch.empty();
     compute.mismatch = mismatch;
     compute.per_run = std::move(per_run);
+    compute.per_cycle_minimum = std::move(minimum_trace);
     last->compute = std::move(compute);
   }
   return std::move(*last);

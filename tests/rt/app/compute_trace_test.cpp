@@ -5,9 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <numeric>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "trainer/app/report.hpp"
@@ -118,6 +121,28 @@ TEST(TrainerRepeat, ThreeRunsOfTheWallSceneGiveThePerCycleMinimum) {
   EXPECT_TRUE(report["compute"]["stages_ns"].contains("hal_read"));
   EXPECT_NE(report_summary(*result).find("compute, per-cycle minimum of 3 run(s)"),
             std::string::npos);
+}
+
+TEST(TrainerRepeat, TheCsvHoldsThePerCycleMinimumOfEveryCycle) {
+  auto result = run_trainer_repeated(wall(50), 2);
+  ASSERT_TRUE(result) << result.error().message;
+  ASSERT_TRUE(result->compute && result->compute->per_cycle_minimum);
+  std::ostringstream csv;
+  write_compute_csv(*result->compute, csv);
+  std::istringstream lines(csv.str());
+  std::string line;
+  ASSERT_TRUE(std::getline(lines, line));
+  EXPECT_EQ(line, "cycle,step,hal_read,kinematics,forces,hal_write,publish");
+  std::int64_t largest_step_ns = 0;
+  std::size_t rows = 0;
+  for (; std::getline(lines, line); ++rows) {
+    EXPECT_EQ(line.rfind(std::to_string(rows) + ",", 0), 0U) << line;
+    const std::size_t first = line.find(',') + 1;
+    largest_step_ns = std::max<std::int64_t>(
+        largest_step_ns, std::stoll(line.substr(first, line.find(',', first) - first)));
+  }
+  EXPECT_EQ(rows, 50U);
+  EXPECT_EQ(largest_step_ns, result->compute->step.max_ns);
 }
 
 TEST(TrainerRepeat, OneRunStillReportsItsCycles) {

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # trainer --repeat through the binary (issue 19): refused with exit 2 and a message in real
 # time, with a recording, out of range; a repeated wall run writes the compute section (per
-# runs, identical, per-cycle minima no larger than each run's own) and its summary lines.
+# runs, identical, per-cycle minima no larger than each run's own), its summary lines and the
+# per-cycle CSV (--compute-csv).
 # usage: trainer_repeat_test.sh TRAINER_BINARY SCENE_FILE
 set -euo pipefail
 trainer=$1
@@ -26,13 +27,16 @@ expect_usage_error "--repeat" --time simulated --repeat 101 --cycles 10
 [ ! -e "$work/x.mcap" ] || { echo "a refused run wrote its recording"; exit 1; }
 
 "$trainer" --scene "$scene" --hal sim --time simulated --repeat 2 --cycles 300 \
-  --report "$work/repeat.json" >"$work/repeat.txt" 2>&1 \
+  --report "$work/repeat.json" --compute-csv "$work/minima.csv" >"$work/repeat.txt" 2>&1 \
   || { echo "repeated run failed"; cat "$work/repeat.txt"; exit 1; }
 grep -q "compute, per-cycle minimum of 2 run(s) of 300 cycles" "$work/repeat.txt" \
   || { echo "no compute lines in the summary"; cat "$work/repeat.txt"; exit 1; }
-python3 - "$work/repeat.json" <<'PY'
-import json, sys
+python3 - "$work/repeat.json" "$work/minima.csv" <<'PY'
+import csv, json, sys
 report = json.load(open(sys.argv[1]))
+rows = list(csv.DictReader(open(sys.argv[2])))
+assert len(rows) == 300 and rows[-1]["cycle"] == "299", len(rows)
+assert max(int(r["step"]) for r in rows) == report["compute"]["step_ns"]["max"], rows[:3]
 c = report["compute"]
 assert c["runs"] == 2 and c["cycles"] == 300 and c["identical"], c
 assert c["period_ns"] == report["period_ns"], c

@@ -18,6 +18,8 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
+#include <ostream>
 #include <span>
 #include <string>
 #include <vector>
@@ -98,7 +100,13 @@ struct ComputeSummary {
   std::vector<ComputeStatistics> stages;     // the stages the scene runs, in cycle order
   std::vector<ComputeStatistics> substages;  // the sub-stages of those stages
   std::vector<ComputeRun> per_run;
+  // The per-cycle minimum itself (every column, `cycles` cycles), for --compute-csv.
+  std::shared_ptr<const CycleTimeTrace> per_cycle_minimum;
 };
+
+// The per-cycle minimum as CSV: a header "cycle,step,hal_read,...,catheter_reactions" (the
+// columns of the stages and sub-stages in `summary`), then one line per cycle, in ns.
+void write_compute_csv(const ComputeSummary& summary, std::ostream& out);
 
 // The summary of `minimum` (the fold of every run) for the columns the run used: the phases
 // whose histograms in `app` have samples, the sub-stages likewise.

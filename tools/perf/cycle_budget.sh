@@ -1,0 +1,164 @@
+#!/usr/bin/env bash
+# The 20 µs cycle budget (issue 19), measured reproducibly: the reference scene (cbd: duct +
+# catheter + two forceps) in simulated time, the same deterministic session run N times, at
+# 1 kHz and at 10 kHz (loop period 100 µs); per cycle the minimum over the runs of the real-clock
+# compute time (step, each stage, each sub-stage), and its p50/p99/p99.9/max/mean printed as a
+# markdown table (docs/performance.md "The 20 µs cycle (issue 19)" says why the minimum).
+# Optionally (--jitter SECONDS, as root) the real-time runs too: `jitter` at 1 kHz and 10 kHz,
+# the ratio of the trainer's wake-up latency to cyclictest's, overruns, and whether a fault
+# latched.
+#
+# usage: tools/perf/cycle_budget.sh [--runs N] [--build DIR] [--out DIR] [--no-fifo]
+#                                   [--jitter SECONDS]
+#   --runs N        runs per period (default 3; more on a busy machine)
+#   --build DIR     the release build (default build/release)
+#   --out DIR       reports and tables (default out/cycle_budget)
+#   --no-fifo       do not run the trainer under SCHED_FIFO (chrt -f 50; root only): other
+#                   processes on the machine then preempt it and more runs are needed
+#   --jitter S      also run jitter for S seconds per side at 1 kHz and at 10 kHz (root)
+# Writes OUT/cbd-1khz.json, OUT/cbd-10khz.json (trainer reports with the "compute" section),
+# OUT/cbd-1khz.csv, OUT/cbd-10khz.csv (the per-cycle minimum of every cycle, ns: which cycles
+# are slow, and in which sub-stage), OUT/table.md (the table), and with --jitter
+# OUT/jitter-1khz/, OUT/jitter-10khz/ (jitter's output).
+set -euo pipefail
+
+runs=3
+build=build/release
+out=out/cycle_budget
+fifo=1
+jitter_seconds=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --runs) runs=$2; shift 2 ;;
+    --build) build=$2; shift 2 ;;
+    --out) out=$2; shift 2 ;;
+    --no-fifo) fifo=0; shift ;;
+    --jitter) jitter_seconds=$2; shift 2 ;;
+    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    *) echo "cycle_budget.sh: unknown argument '$1' (--help)" >&2; exit 2 ;;
+  esac
+done
+
+repo=$(cd "$(dirname "$0")/../.." && pwd)
+cd "$repo"
+trainer=$build/bin/trainer
+scene=config/scenes/cbd.toml
+[ -x "$trainer" ] || { echo "cycle_budget.sh: no $trainer: cmake --build --preset release --target trainer modelc" >&2; exit 1; }
+if [ ! -f out/models/duct.img ] || [ ! -f out/models/catheter_cbd.img ]; then
+  "$build/bin/modelc" build --scene "$scene"
+fi
+mkdir -p "$out"
+
+# SCHED_FIFO keeps the other processes of a shared machine off the trainer's CPU while it runs
+# (the hypervisor's interrupts remain: the per-cycle minimum removes those).
+prefix=()
+if [ "$fifo" = 1 ]; then
+  if [ "$(id -u)" = 0 ] && command -v chrt >/dev/null; then
+    prefix=(chrt -f 50)
+  else
+    echo "cycle_budget.sh: not root (or no chrt): running under SCHED_OTHER" >&2
+    fifo=0
+  fi
+fi
+
+for period in 1000 100; do
+  name=cbd-$((1000 / period))khz
+  echo "cycle_budget.sh: $name: $runs runs of the scripted session, simulated time" >&2
+  status=0
+  "${prefix[@]}" "$trainer" --scene "$scene" --hal sim --time simulated --period-us "$period" \
+    --repeat "$runs" --report "$out/$name.json" --compute-csv "$out/$name.csv" \
+    >"$out/$name.txt" 2>"$out/$name.log" || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "cycle_budget.sh: trainer exited with $status ($out/$name.txt, $out/$name.log)" >&2
+    cat "$out/$name.txt" "$out/$name.log" >&2
+    exit 1
+  fi
+done
+
+if [ "$jitter_seconds" != 0 ]; then
+  for period in 1000 100; do
+    name=jitter-$((1000 / period))khz
+    echo "cycle_budget.sh: $name: jitter, real time, $jitter_seconds s per side" >&2
+    status=0
+    "$build/bin/jitter" --scene "$scene" --period-us "$period" --seconds "$jitter_seconds" \
+      --out "$out/$name" >"$out/$name.txt" 2>&1 || status=$?
+    # 3 = a run latched a fault: measured, reported below.
+    if [ "$status" -ne 0 ] && [ "$status" -ne 3 ]; then
+      echo "cycle_budget.sh: jitter exited with $status ($out/$name.txt)" >&2
+      cat "$out/$name.txt" >&2
+      exit 1
+    fi
+  done
+fi
+
+python3 - "$out" "$runs" "$fifo" "$jitter_seconds" "$(git describe --always --dirty 2>/dev/null || echo unknown)" \
+  >"$out/table.md" <<'PY'
+import json, os, sys, time
+out, runs, fifo, jitter_seconds, revision = sys.argv[1:6]
+reports = {label: json.load(open(os.path.join(out, f"cbd-{label}.json"))) for label in ("1khz", "10khz")}
+us = lambda ns: f"{ns / 1000:.1f}"
+first = reports["1khz"]["compute"]
+load = open("/proc/loadavg").read().split()[:3]
+print(f"cbd, simulated time, per-cycle minimum of {runs} identical runs, real clock (µs); "
+      f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {revision}, "
+      f"{os.cpu_count()} CPUs, load {' '.join(load)}, "
+      f"{'SCHED_FIFO 50' if fifo == '1' else 'SCHED_OTHER'}")
+print()
+for label, report in reports.items():
+    c = report["compute"]
+    if not c["identical"]:
+        print(f"**WARNING: the {label} runs were not identical: {c['mismatch']}**")
+    print(f"- {label}: {c['cycles']} cycles of {c['period_ns'] / 1000:.0f} µs; each run's own step "
+          "p50/p99.9: " + ", ".join(f"{us(r['step_ns']['p50'])}/{us(r['step_ns']['p99_9'])}"
+                                   for r in c["per_run"]))
+print()
+print("| µs | 1 kHz p50 | p99 | p99.9 | max | mean | 10 kHz p50 | p99 | p99.9 | max | mean |")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
+# Cycle order (the JSON objects' keys come sorted by name).
+stage_order = ["hal_read", "kinematics", "modal_models", "tensor_models", "catheters", "forces",
+               "hal_write", "publish"]
+substage_order = {"modal_models": ["modal_near", "modal_collision", "modal_solve", "modal_step",
+                                   "modal_reconstruct", "modal_refit"],
+                  "catheters": ["catheter_walls", "catheter_tools", "catheter_step",
+                                "catheter_reactions"]}
+def rows():
+    c = first
+    yield "**step**", "step_ns", None
+    for stage in stage_order:
+        if stage not in c["stages_ns"]:
+            continue
+        yield stage, "stages_ns", stage
+        for sub in substage_order.get(stage, []):
+            if sub in c["substages_ns"]:
+                yield "&nbsp;&nbsp;" + sub, "substages_ns", sub
+for label, section, key in rows():
+    cells = []
+    for report in reports.values():
+        s = report["compute"][section] if key is None else report["compute"][section].get(key)
+        if s is None:
+            cells += ["–"] * 5
+        else:
+            cells += [us(s["p50"]), us(s["p99"]), us(s["p99_9"]), us(s["max"]), us(s["mean"])]
+    if key is None:
+        cells = [f"**{c}**" for c in cells]
+    print(f"| {label} | " + " | ".join(cells) + " |")
+if jitter_seconds != "0":
+    print()
+    print(f"Real time (`jitter`, {jitter_seconds} s per side, one after the other, SCHED_FIFO 80 on CPU 1):")
+    print()
+    print("| run | trainer wake p99 / p99.9 µs | cyclictest p99 / p99.9 µs | ratio p99 / p99.9 | "
+          "step p50 / p99.9 µs | overruns | longest streak | faulted runs |")
+    print("|---|---|---|---|---|---|---|---|")
+    for label in ("1khz", "10khz"):
+        path = os.path.join(out, f"jitter-{label}", "summary.json")
+        if not os.path.exists(path):
+            print(f"| cbd {label} | no summary (see {out}/jitter-{label}.txt) | | | | | | |")
+            continue
+        j = json.load(open(path))
+        t, ct, ratio = j["trainer"], j["cyclictest"]["latency_us"], j["ratio_trainer_over_cyclictest"]
+        print(f"| cbd {label} | {t['wake_latency_us']['p99']} / {t['wake_latency_us']['p99_9']} | "
+              f"{ct['p99']} / {ct['p99_9']} | {ratio['p99']} / {ratio['p99_9']} | "
+              f"{t['step_time_us']['p50']} / {t['step_time_us']['p99_9']} | {t['overruns']} of {t['cycles']} | "
+              f"{t['longest_overrun_streak']} | {t['faulted_runs']} of {t['runs']} |")
+PY
+cat "$out/table.md"
