@@ -16,6 +16,8 @@
 #   --no-fifo       do not run the trainer under SCHED_FIFO (chrt -f 50; root only): other
 #                   processes on the machine then preempt it and more runs are needed
 #   --jitter S      also run jitter for S seconds per side at 1 kHz and at 10 kHz (root)
+#   --table-only    run nothing: print the table again from OUT's reports (with --jitter S
+#                   to include OUT's jitter runs)
 # Writes OUT/cbd-1khz.json, OUT/cbd-10khz.json (trainer reports with the "compute" section),
 # OUT/cbd-1khz.csv, OUT/cbd-10khz.csv (the per-cycle minimum of every cycle, ns: which cycles
 # are slow, and in which sub-stage), OUT/table.md (the table), and with --jitter
@@ -27,6 +29,7 @@ build=build/release
 out=out/cycle_budget
 fifo=1
 jitter_seconds=0
+table_only=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs=$2; shift 2 ;;
@@ -34,7 +37,8 @@ while [ $# -gt 0 ]; do
     --out) out=$2; shift 2 ;;
     --no-fifo) fifo=0; shift ;;
     --jitter) jitter_seconds=$2; shift 2 ;;
-    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    --table-only) table_only=1; shift ;;
+    -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
     *) echo "cycle_budget.sh: unknown argument '$1' (--help)" >&2; exit 2 ;;
   esac
 done
@@ -62,6 +66,7 @@ if [ "$fifo" = 1 ]; then
 fi
 
 for period in 1000 100; do
+  [ "$table_only" = 0 ] || break
   name=cbd-$((1000 / period))khz
   echo "cycle_budget.sh: $name: $runs runs of the scripted session, simulated time" >&2
   status=0
@@ -75,7 +80,7 @@ for period in 1000 100; do
   fi
 done
 
-if [ "$jitter_seconds" != 0 ]; then
+if [ "$jitter_seconds" != 0 ] && [ "$table_only" = 0 ]; then
   for period in 1000 100; do
     name=jitter-$((1000 / period))khz
     echo "cycle_budget.sh: $name: jitter, real time, $jitter_seconds s per side" >&2
@@ -147,8 +152,10 @@ if jitter_seconds != "0":
     print(f"Real time (`jitter`, {jitter_seconds} s per side, one after the other, SCHED_FIFO 80 on CPU 1):")
     print()
     print("| run | trainer wake p99 / p99.9 µs | cyclictest p99 / p99.9 µs | ratio p99 / p99.9 | "
-          "step p50 / p99.9 µs | overruns | longest streak | faulted runs |")
+          "step p50 / p99.9 µs | overruns | longest streak | fault latched |")
     print("|---|---|---|---|---|---|---|---|")
+    f1 = lambda v: f"{v:.1f}"
+    f2 = lambda v: f"{v:.2f}"
     for label in ("1khz", "10khz"):
         path = os.path.join(out, f"jitter-{label}", "summary.json")
         if not os.path.exists(path):
@@ -156,9 +163,15 @@ if jitter_seconds != "0":
             continue
         j = json.load(open(path))
         t, ct, ratio = j["trainer"], j["cyclictest"]["latency_us"], j["ratio_trainer_over_cyclictest"]
-        print(f"| cbd {label} | {t['wake_latency_us']['p99']} / {t['wake_latency_us']['p99_9']} | "
-              f"{ct['p99']} / {ct['p99_9']} | {ratio['p99']} / {ratio['p99_9']} | "
-              f"{t['step_time_us']['p50']} / {t['step_time_us']['p99_9']} | {t['overruns']} of {t['cycles']} | "
-              f"{t['longest_overrun_streak']} | {t['faulted_runs']} of {t['runs']} |")
+        faults = []
+        for run in t["run_list"]:
+            if run["faults_latched"]:
+                r = json.load(open(os.path.join(out, f"jitter-{label}", run["report"])))
+                faults.append(f"{run['first_fault']} at cycle {r['safety']['first_fault_cycle']}")
+        print(f"| cbd {label} | {f1(t['wake_latency_us']['p99'])} / {f1(t['wake_latency_us']['p99_9'])} | "
+              f"{f1(ct['p99'])} / {f1(ct['p99_9'])} | {f2(ratio['p99'])} / {f2(ratio['p99_9'])} | "
+              f"{f1(t['step_time_us']['p50'])} / {f1(t['step_time_us']['p99_9'])} | "
+              f"{t['overruns']} of {t['cycles']} | {t['longest_overrun_streak']} | "
+              f"{'; '.join(faults) if faults else 'no'} ({t['faulted_runs']} of {t['runs']} runs) |")
 PY
 cat "$out/table.md"
