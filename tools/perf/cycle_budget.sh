@@ -18,6 +18,8 @@
 #   --jitter S      also run jitter for S seconds per side at 1 kHz and at 10 kHz (root)
 #   --table-only    run nothing: print the table again from OUT's reports (with --jitter S
 #                   to include OUT's jitter runs)
+#   --baseline DIR  also print "before → after" (p50, p99.9) against an earlier OUT (the
+#                   before table's runs), row by row
 # Writes OUT/cbd-1khz.json, OUT/cbd-10khz.json (trainer reports with the "compute" section),
 # OUT/cbd-1khz.csv, OUT/cbd-10khz.csv (the per-cycle minimum of every cycle, ns: which cycles
 # are slow, and in which sub-stage), OUT/table.md (the table), and with --jitter
@@ -30,6 +32,7 @@ out=out/cycle_budget
 fifo=1
 jitter_seconds=0
 table_only=0
+baseline=
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs=$2; shift 2 ;;
@@ -38,7 +41,8 @@ while [ $# -gt 0 ]; do
     --no-fifo) fifo=0; shift ;;
     --jitter) jitter_seconds=$2; shift 2 ;;
     --table-only) table_only=1; shift ;;
-    -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
+    --baseline) baseline=$2; shift 2 ;;
+    -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
     *) echo "cycle_budget.sh: unknown argument '$1' (--help)" >&2; exit 2 ;;
   esac
 done
@@ -65,6 +69,11 @@ if [ "$fifo" = 1 ]; then
   fi
 fi
 
+if [ "$table_only" = 0 ]; then
+  printf '{"utc": "%s", "revision": "%s", "load": "%s", "runs": %s, "fifo": %s}\n' \
+    "$(date -u '+%Y-%m-%d %H:%M UTC')" "$(git describe --always --dirty 2>/dev/null || echo unknown)" \
+    "$(cut -d' ' -f1-3 /proc/loadavg)" "$runs" "$fifo" >"$out/run_info.json"
+fi
 for period in 1000 100; do
   [ "$table_only" = 0 ] || break
   name=cbd-$((1000 / period))khz
@@ -96,18 +105,19 @@ if [ "$jitter_seconds" != 0 ] && [ "$table_only" = 0 ]; then
   done
 fi
 
-python3 - "$out" "$runs" "$fifo" "$jitter_seconds" "$(git describe --always --dirty 2>/dev/null || echo unknown)" \
-  >"$out/table.md" <<'PY'
-import json, os, sys, time
-out, runs, fifo, jitter_seconds, revision = sys.argv[1:6]
-reports = {label: json.load(open(os.path.join(out, f"cbd-{label}.json"))) for label in ("1khz", "10khz")}
+python3 - "$out" "$jitter_seconds" "$baseline" >"$out/table.md" <<'PY'
+import json, os, sys
+out, jitter_seconds, baseline = sys.argv[1:4]
+def load_reports(directory):
+    return {label: json.load(open(os.path.join(directory, f"cbd-{label}.json")))
+            for label in ("1khz", "10khz")}
+reports = load_reports(out)
 us = lambda ns: f"{ns / 1000:.1f}"
 first = reports["1khz"]["compute"]
-load = open("/proc/loadavg").read().split()[:3]
-print(f"cbd, simulated time, per-cycle minimum of {runs} identical runs, real clock (µs); "
-      f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {revision}, "
-      f"{os.cpu_count()} CPUs, load {' '.join(load)}, "
-      f"{'SCHED_FIFO 50' if fifo == '1' else 'SCHED_OTHER'}")
+info = json.load(open(os.path.join(out, "run_info.json")))
+print(f"cbd, simulated time, per-cycle minimum of {info['runs']} identical runs, real clock (µs); "
+      f"{info['utc']}, {info['revision']}, {os.cpu_count()} CPUs, load {info['load']}, "
+      f"{'SCHED_FIFO 50' if info['fifo'] == 1 else 'SCHED_OTHER'}")
 print()
 for label, report in reports.items():
     c = report["compute"]
@@ -147,6 +157,29 @@ for label, section, key in rows():
     if key is None:
         cells = [f"**{c}**" for c in cells]
     print(f"| {label} | " + " | ".join(cells) + " |")
+if baseline:
+    before = load_reports(baseline)
+    before_info = json.load(open(os.path.join(baseline, "run_info.json")))
+    print()
+    print(f"Before ({baseline}: {before_info['utc']}, {before_info['revision']}, load "
+          f"{before_info['load']}) → after (above), per-cycle minimum, µs:")
+    print()
+    print("| µs | 1 kHz p50 | 1 kHz p99.9 | 10 kHz p50 | 10 kHz p99.9 |")
+    print("|---|---|---|---|---|")
+    for label, section, key in rows():
+        cells = []
+        for rate in ("1khz", "10khz"):
+            for q in ("p50", "p99_9"):
+                def value(reports_):
+                    c = reports_[rate]["compute"]
+                    s = c[section] if key is None else c[section].get(key)
+                    return None if s is None else s[q]
+                b, a = value(before), value(reports)
+                if b is None or a is None:
+                    cells.append(f"{us(b) if b is not None else '–'} → {us(a) if a is not None else '–'}")
+                else:
+                    cells.append(f"{us(b)} → {us(a)} ({a / b - 1:+.0%})" if b > 0 else f"{us(b)} → {us(a)}")
+        print(f"| {label} | " + " | ".join(cells) + " |")
 if jitter_seconds != "0":
     print()
     print(f"Real time (`jitter`, {jitter_seconds} s per side, one after the other, SCHED_FIFO 80 on CPU 1):")
