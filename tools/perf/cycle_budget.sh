@@ -52,6 +52,10 @@ cd "$repo"
 trainer=$build/bin/trainer
 scene=config/scenes/cbd.toml
 [ -x "$trainer" ] || { echo "cycle_budget.sh: no $trainer: cmake --build --preset release --target trainer modelc" >&2; exit 1; }
+if [ "$jitter_seconds" != 0 ] && [ "$table_only" = 0 ] && [ ! -x "$build/bin/jitter" ]; then
+  echo "cycle_budget.sh: no $build/bin/jitter: cmake --build --preset release --target jitter" >&2
+  exit 1
+fi
 if [ ! -f out/models/duct.img ] || [ ! -f out/models/catheter_cbd.img ]; then
   "$build/bin/modelc" build --scene "$scene"
 fi
