@@ -5,8 +5,9 @@
 // same sub-stage in one cycle add up (several models, a surface refreshed twice). At the end of
 // the cycle the runner records each sub-stage of the stages it runs into its histogram (0 when
 // its code was skipped that cycle, so every sub-stage has one sample per cycle, as the stages
-// do) and keeps the cycle's values (last_ns) for the per-cycle trace (trainer --repeat) and
-// the cycle benchmark.
+// do) and keeps the cycle's values (last_ns) for the per-cycle trace (trainer --repeat).
+// A new sub-stage: an enumerator here (in cycle order), its name in kSubstageNames, its stage in
+// phase_of() (stage_runner.cpp), a lap call where its work ends, a row in docs/report.md.
 //
 // RT path: noexcept, no heap, no branches on data but "has a clock". Outside a stage runner
 // (a stage run directly by a test) no clock is set and lap() does nothing.
