@@ -5,6 +5,7 @@
 #include "haptic_stages.hpp"
 #include "trainer/app/compute_trace.hpp"
 #include "trainer/app/hal_taps.hpp"
+#include "trainer/core/float_env.hpp"
 
 namespace trainer::app {
 namespace {
@@ -129,6 +130,7 @@ core::Expected<std::unique_ptr<HapticApp>> HapticApp::create(
 }
 
 core::Status HapticApp::run_cycle(const loop::CycleTiming& timing) noexcept {
+  const core::FlushDenormalsScope flush_denormals;  // core/float_env.hpp
   ++stats_.cycles;
   frame_.timing = timing;
   if (recorder_ != nullptr) recorder_->begin_cycle(timing);
