@@ -29,7 +29,7 @@ using namespace trainer;
 
 constexpr double kPeriodS = 1e-3;               // the scene's 1 kHz loop
 constexpr std::uint32_t kBudget = 1000;         // large enough for N = 161 (384 substeps)
-constexpr std::size_t kArenaBytes = 64 * 1024;  // 161 particles: 161 · 7 · 12 B + flags ≈ 14 kB
+constexpr std::size_t kArenaBytes = 128 * 1024;  // 161 particles: ≈ 14 kB state + 28 kB solve
 constexpr int kLoadCycleSteps = 1000;           // the tip load turns once per 1000 periods
 
 const core::Expected<config::ModelDefinition>& default_catheter() {
@@ -74,6 +74,8 @@ core::Expected<Bench> make_catheter(std::uint32_t particle_count) {
   params.linear_density_kg_per_m = static_cast<float>(c.linear_density_kg_per_m);
   params.damping_n_s_per_m = static_cast<float>(c.damping_n_s_per_m);
   params.particle_count = particle_count;
+  params.contact_stiffness_n_per_m = model::catheter_contact_stiffness(
+      static_cast<float>(c.wall_stiffness_n_per_m), static_cast<float>(c.tool_stiffness_n_per_m));
   model::CatheterSetup setup;
   setup.haptic_period_s = static_cast<float>(kPeriodS);
   setup.max_substeps = kBudget;

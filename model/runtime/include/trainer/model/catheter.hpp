@@ -42,6 +42,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <type_traits>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // cross()
@@ -96,10 +97,41 @@ struct ChainStiffness {
   Eigen::Matrix<Scalar, 3, 1> root_tangent = Eigen::Matrix<Scalar, 3, 1>::UnitX();  // unit
 };
 
-// Angle (rad, 0..π) between segments a and b.
+// atan2(sine, cosine) for sine ≥ 0 (an angle in [0, π]) in float without the libm call, which
+// was ~60 % of the catheter's cost: the octant is reduced to |t| ≤ tan(π/8) and atan(t) is the
+// classic degree-9 odd minimax polynomial (Cephes' atanf), within 2 float ulp of std::atan2 over
+// [0, π] (CatheterForces.FastAngleIsStdAtan2ToFloatPrecision measures it). NaN in, NaN out.
+inline float catheter_angle(float sine, float cosine) noexcept {
+  constexpr float kPi = 3.14159265358979F;
+  const float magnitude = std::fabs(cosine);
+  // First octant pair: t = min/max in [0, 1], angle = atan(t) or π/2 − atan(t).
+  const bool swapped = sine > magnitude;
+  const float numerator = swapped ? magnitude : sine;
+  const float denominator = swapped ? sine : magnitude;
+  float t = denominator > 0.0F ? numerator / denominator : 0.0F;
+  float offset = 0.0F;
+  if (t > 0.4142135623730950F) {  // tan(π/8): atan(t) = π/4 + atan((t − 1)/(t + 1))
+    t = (t - 1.0F) / (t + 1.0F);
+    offset = 0.25F * kPi;
+  }
+  const float z = t * t;
+  const float atan_t =
+      offset + ((((8.05374449538e-2F * z - 1.38776856032e-1F) * z + 1.99777106478e-1F) * z -
+                 3.33329491539e-1F) * z * t + t);
+  const float first = swapped ? 0.5F * kPi - atan_t : atan_t;
+  const float angle = cosine < 0.0F ? kPi - first : first;
+  return (sine != sine || cosine != cosine) ? sine + cosine : angle;  // NaN propagates
+}
+
+// Angle (rad, 0..π) between segments a and b: std::atan2 in double (the offline static check),
+// catheter_angle() in float (run time).
 template <class Scalar>
 Scalar segment_angle(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<Scalar, 3, 1>& b) noexcept {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
+  if constexpr (std::is_same_v<Scalar, float>) {
+    return catheter_angle(a.cross(b).norm(), a.dot(b));
+  } else {
+    return std::atan2(a.cross(b).norm(), a.dot(b));
+  }
 }
 
 // Gradient of E = ½ k θ² with respect to the segment vectors a and b. With â, b̂ unit:
@@ -107,6 +139,30 @@ Scalar segment_angle(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<S
 // so ∂E/∂a = −k (θ/sinθ)(b̂ − cosθ â)/|a|. θ/sinθ is smooth at θ = 0 (→ 1, series used below
 // 1e-4 rad), so the straight chain is not a singular direction. Near θ = π (a segment folded
 // back on its neighbour, unphysical) the factor is capped. Zero-length segments give zero.
+// The same from the unit segments and their lengths (> 0), for callers that have them.
+template <class Scalar>
+void bending_gradient_of_units(const Eigen::Matrix<Scalar, 3, 1>& unit_a, Scalar length_a,
+                               const Eigen::Matrix<Scalar, 3, 1>& unit_b, Scalar length_b,
+                               Scalar stiffness, Eigen::Matrix<Scalar, 3, 1>& gradient_a,
+                               Eigen::Matrix<Scalar, 3, 1>& gradient_b) noexcept {
+  const Scalar sine = unit_a.cross(unit_b).norm();
+  const Scalar cosine = unit_a.dot(unit_b);
+  Scalar theta;
+  if constexpr (std::is_same_v<Scalar, float>) {
+    theta = catheter_angle(sine, cosine);
+  } else {
+    theta = std::atan2(sine, cosine);
+  }
+  Scalar theta_over_sine = Scalar(1) + theta * theta / Scalar(6);
+  if (theta > Scalar(1e-4)) {
+    constexpr Scalar kMaxFactor = Scalar(1e4);
+    theta_over_sine = sine > theta / kMaxFactor ? theta / sine : kMaxFactor;
+  }
+  const Scalar scale = -stiffness * theta_over_sine;
+  gradient_a = scale * (unit_b - cosine * unit_a) / length_a;
+  gradient_b = scale * (unit_a - cosine * unit_b) / length_b;
+}
+
 template <class Scalar>
 void bending_gradient(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<Scalar, 3, 1>& b,
                       Scalar stiffness, Eigen::Matrix<Scalar, 3, 1>& gradient_a,
@@ -118,19 +174,9 @@ void bending_gradient(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<
     gradient_b.setZero();
     return;
   }
-  const Eigen::Matrix<Scalar, 3, 1> unit_a = a / length_a;
-  const Eigen::Matrix<Scalar, 3, 1> unit_b = b / length_b;
-  const Scalar sine = unit_a.cross(unit_b).norm();
-  const Scalar cosine = unit_a.dot(unit_b);
-  const Scalar theta = std::atan2(sine, cosine);
-  Scalar theta_over_sine = Scalar(1) + theta * theta / Scalar(6);
-  if (theta > Scalar(1e-4)) {
-    constexpr Scalar kMaxFactor = Scalar(1e4);
-    theta_over_sine = sine > theta / kMaxFactor ? theta / sine : kMaxFactor;
-  }
-  const Scalar scale = -stiffness * theta_over_sine;
-  gradient_a = scale * (unit_b - cosine * unit_a) / length_a;
-  gradient_b = scale * (unit_a - cosine * unit_b) / length_b;
+  bending_gradient_of_units<Scalar>(Eigen::Matrix<Scalar, 3, 1>(a / length_a), length_a,
+                                    Eigen::Matrix<Scalar, 3, 1>(b / length_b), length_b, stiffness,
+                                    gradient_a, gradient_b);
 }
 
 // Stiffness of the hinge at interior particle i. A held segment (both its particles held, as
@@ -318,6 +364,13 @@ class Catheter {
   // false if the state became non-finite. `fraction` is this substep's share of the step
   // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
   bool substep(float dt_s, float fraction, float hold_step) noexcept;
+  // The substep's explicit forces into forces_: external, axial at the current positions,
+  // bending, contact planes; and the segments' unit vectors and lengths (segment_units_).
+  void explicit_forces(float fraction) noexcept;
+  // The linearly implicit velocity update: assembles (m + h b) I + h² H_axial (block
+  // tridiagonal, 3×3 blocks, held particles eliminated) and solves it for the new velocities
+  // into solution_ (docs/catheter.md, "Integration and stable step").
+  void solve_velocities(float dt_s, float period_fraction) noexcept;
   // Back to the state at the start of step(), with no hold or contact forces reported.
   void restore_saved_state() noexcept;
   bool crushed() const noexcept;  // some segment shorter than kMinSegmentRatio · l0
@@ -342,6 +395,13 @@ class Catheter {
   std::span<Vec3> saved_positions_;  // last good state (start of step())
   std::span<Vec3> saved_velocities_;
   std::span<Vec3> hold_forces_n_;    // mean over the last step, per particle
+  // Scratch of the implicit solve (double: the axial blocks h² k_s reach 1e6 m at the stiffest
+  // accepted EA, and float would lose the transverse directions to rounding).
+  std::span<Eigen::Matrix3d> block_inverse_;  // N: inverse of the eliminated diagonal blocks
+  std::span<Eigen::Matrix3d> coupling_;       // N − 1: h² H_s of segment s (the block is −that)
+  std::span<Eigen::Vector3d> solution_;       // N: right-hand side, then the new velocities
+  std::span<Vec3> segment_units_;             // N − 1: unit segment vectors of the substep
+  std::span<float> segment_lengths_;          // N − 1
   std::span<ContactPlane> planes_;   // max_contact_planes
   std::span<Vec3> plane_forces_n_;   // mean over the last step, per plane
   std::size_t plane_count_ = 0;
