@@ -1,6 +1,7 @@
 // Particle catheter: creation from parameters or from an image's data (the derivation itself is
-// catheter_chain.cpp), and the semi-implicit Euler loop (Basdogan eq. 27–28). The force law is
-// the shared template in catheter.hpp.
+// catheter_chain.cpp), and the substep loop: linearly implicit axial springs and damping (a
+// block-tridiagonal solve), explicit bending and contacts (Basdogan eq. 27–28). The force law
+// is the shared template in catheter.hpp.
 #include "trainer/model/catheter.hpp"
 
 #include <algorithm>
@@ -106,7 +107,7 @@ core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
   auto block_inverse = arena.allocate_array<Eigen::Matrix3d>(n, "catheter solve blocks");
   if (!block_inverse) return std::move(block_inverse).error();
   catheter.block_inverse_ = block_inverse.value();
-  auto coupling = arena.allocate_array<Eigen::Matrix3d>(n - 1, "catheter solve couplings");
+  auto coupling = arena.allocate_array<SegmentCoupling>(n - 1, "catheter solve couplings");
   if (!coupling) return std::move(coupling).error();
   catheter.coupling_ = coupling.value();
   auto solution = arena.allocate_array<Eigen::Vector3d>(n, "catheter solve vector");
@@ -280,52 +281,64 @@ void Catheter::solve_velocities(float dt_s, float period_fraction) noexcept {
   const double mass = static_cast<double>(mass_kg_);
   const double diagonal = mass + h * static_cast<double>(damping_n_s_per_m_);
   for (std::uint32_t s = 0; s + 1 < count_; ++s) {
+    SegmentCoupling& coupling = coupling_[s];
     const double length = static_cast<double>(segment_lengths_[s]);
     if (!(length > 0.0)) {
-      coupling_[s].setZero();
+      coupling = SegmentCoupling{};
       continue;
     }
-    const Eigen::Vector3d unit = segment_units_[s].cast<double>();
     const double g = std::clamp(1.0 - l0 / length, 0.0, 1.0);
-    coupling_[s].noalias() = (h2k * (1.0 - g)) * (unit * unit.transpose());
-    coupling_[s].diagonal().array() += h2k * g;
+    coupling.unit = segment_units_[s].cast<double>();
+    coupling.isotropic = h2k * g;
+    coupling.along = h2k * (1.0 - g);
   }
-  // Forward elimination. A held particle's velocity is known (its hold path): its row is the
-  // identity, and its couplings move to the free neighbours' right-hand sides.
+  // Forward elimination (block LDLᵀ): D'_i = D_i − C D'_{i−1}⁻¹ C, r'_i = r_i − C D'_{i−1}⁻¹ r'_{i−1}
+  // with C = −(a I + b û ûᵀ) symmetric, so with w = D'⁻¹ û:
+  //   C D'⁻¹ C = a² D'⁻¹ + a b (w ûᵀ + û wᵀ) + b² (û·w) û ûᵀ,   C D'⁻¹ r' = −(a y + b (û·y) û), y = D'⁻¹ r'.
+  // A held particle's velocity is known (its hold path): its row is the identity, and its
+  // couplings move to the free neighbours' right-hand sides.
   const float dt_over_period = dt_s / period_fraction;  // the step's period
+  const auto hold_velocity = [&](std::uint32_t i) {
+    return Eigen::Vector3d(((hold_targets_m_[i] - saved_positions_[i]) / dt_over_period).cast<double>());
+  };
   for (std::uint32_t i = 0; i < count_; ++i) {
     if (held_[i] != 0) {
-      solution_[i] = ((hold_targets_m_[i] - saved_positions_[i]) / dt_over_period).cast<double>();
+      solution_[i] = hold_velocity(i);
       block_inverse_[i].setIdentity();
       continue;
     }
     Eigen::Matrix3d block = Eigen::Matrix3d::Identity() * diagonal;
     Eigen::Vector3d rhs = mass * velocities_[i].cast<double>() + h * forces_[i].cast<double>();
+    const auto add_segment = [&block](const SegmentCoupling& c) {
+      block.diagonal().array() += c.isotropic;
+      block.noalias() += c.along * (c.unit * c.unit.transpose());
+    };
+    if (i > 0) add_segment(coupling_[i - 1]);  // the segments at i
+    if (i + 1 < count_) add_segment(coupling_[i]);
     if (i > 0) {
-      block += coupling_[i - 1];
+      const SegmentCoupling& c = coupling_[i - 1];
       if (held_[i - 1] != 0) {
-        rhs.noalias() += coupling_[i - 1] * solution_[i - 1];  // −C v_held, C = −h² H
+        rhs += c.times(solution_[i - 1]);  // −C v_held
       } else {
-        // L = C D⁻¹ with C = −coupling: block −= C D⁻¹ C, rhs −= C D⁻¹ r'
-        const Eigen::Matrix3d factor = coupling_[i - 1] * block_inverse_[i - 1];
-        block.noalias() -= factor * coupling_[i - 1];
-        rhs.noalias() += factor * solution_[i - 1];
+        const Eigen::Matrix3d& previous = block_inverse_[i - 1];
+        const Eigen::Vector3d w = previous * c.unit;
+        const Eigen::Vector3d y = previous * solution_[i - 1];
+        block.noalias() -= (c.along * c.along * c.unit.dot(w)) * (c.unit * c.unit.transpose());
+        if (c.isotropic != 0.0) {
+          block.noalias() -= (c.isotropic * c.isotropic) * previous;
+          block.noalias() -= (c.isotropic * c.along) * (w * c.unit.transpose() + c.unit * w.transpose());
+        }
+        rhs += c.times(y);
       }
     }
-    if (i + 1 < count_) {
-      block += coupling_[i];
-      if (held_[i + 1] != 0) {
-        rhs.noalias() +=
-            coupling_[i] * ((hold_targets_m_[i + 1] - saved_positions_[i + 1]) / dt_over_period).cast<double>();
-      }
-    }
+    if (i + 1 < count_ && held_[i + 1] != 0) rhs += coupling_[i].times(hold_velocity(i + 1));
     block_inverse_[i] = block.inverse();
     solution_[i] = rhs;
   }
-  // Back substitution: v_i = D_i⁻¹ (r'_i − C_i v_{i+1}), C_i = −coupling_i, free neighbours only.
+  // Back substitution: v_i = D'_i⁻¹ (r'_i − C_i v_{i+1}), free neighbours only.
   for (std::uint32_t k = count_; k-- > 0;) {
     if (held_[k] != 0) continue;
-    if (k + 1 < count_ && held_[k + 1] == 0) solution_[k].noalias() += coupling_[k] * solution_[k + 1];
+    if (k + 1 < count_ && held_[k + 1] == 0) solution_[k] += coupling_[k].times(solution_[k + 1]);
     solution_[k] = block_inverse_[k] * solution_[k];
   }
 }
@@ -341,8 +354,8 @@ bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
       // their end-of-substep values: F(p) − b v' − h Σ_s H_s (v'_i − v'_j). The holder feels it.
       Eigen::Vector3d force = forces_[i].cast<double>() -
                               static_cast<double>(damping_n_s_per_m_) * solution_[i];
-      if (i > 0) force -= coupling_[i - 1] * (solution_[i] - solution_[i - 1]) / h;
-      if (i + 1 < count_) force -= coupling_[i] * (solution_[i] - solution_[i + 1]) / h;
+      if (i > 0) force -= coupling_[i - 1].times(solution_[i] - solution_[i - 1]) / h;
+      if (i + 1 < count_) force -= coupling_[i].times(solution_[i] - solution_[i + 1]) / h;
       hold_forces_n_[i] += fraction * force.cast<float>();
       const Vec3 start = saved_positions_[i];
       positions_[i] = hold_step >= 1.0F ? hold_targets_m_[i] : Vec3(start + hold_step * (hold_targets_m_[i] - start));

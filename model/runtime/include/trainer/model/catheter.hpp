@@ -1,7 +1,8 @@
 // The particle catheter at run time (Basdogan §V-C-2, eq. 27–28; METHODS.md §2): N particles
 // uniformly along the centreline joined by linear (axial) springs and torsional (bending)
 // springs, viscous dissipation per particle, external forces, held particles (forceps jaws,
-// introducer) and an optional clamped start. Integrated by semi-implicit Euler (eq. 28),
+// introducer) and an optional clamped start. Integrated linearly implicitly in the axial springs
+// and the damping and explicitly (semi-implicit Euler, eq. 28) in the bending and the contacts,
 // sub-stepped inside one haptic period at a step the model computes for itself.
 //
 // Mapping of the beam to the chain (derivation in docs/catheter.md):
@@ -22,16 +23,14 @@
 //   insertion, docs/tradeoff-models.md); with them at second order.
 //   Dissipation −b v with b in N·s/m per particle (not a damping ratio).
 //
-// Stability: semi-implicit Euler is stable for Δt < 2/ω_max. ω_max² ≤ 4 k_s/m (axial chain)
-// + 20 k_b/(m l0²) (bending chain: the interior stencil k_b/l0² [1 −4 6 −4 1] has spectral
-// radius 16; 20 covers the 2 k_b root hinge by Gershgorin; held particles are moved, not
-// integrated, so only free rows and columns count, and a free particle next to a 2 k_b grasp
-// hinge has row sum at most 2 + 6 + 4 = 12). The stable substep is
-// 0.5 · 2/ω_max, and also ≤ m/b so the explicit damping never overshoots. Tension adds a
-// transverse geometric stiffness T/l = k_s (1 − l0/l) per segment, below k_s at any stretch
-// (a tip pulled with 20 EA stretches the chain 20-fold and settles); compression makes it
-// negative, −k_s (l0/l − 1), which grows without bound as a segment collapses: step() refuses
-// a segment crushed below kMinSegmentRatio · l0.
+// Stability (docs/catheter.md, "Integration and stable step"): each substep solves
+// ((m + h b) I + h² H_axial) v' = m v + h F(p) (block tridiagonal, 3×3 blocks, double), which
+// has no step limit; what stays explicit sets it: ω_max² ≤ 20 k_b/(m l0²) (the bending stencil
+// k_b/l0² [1 −4 6 −4 1] has spectral radius 16, 20 covers the 2 k_b root and grasp hinges by
+// Gershgorin) + k_contact/m (CatheterParams::contact_stiffness_n_per_m), substep
+// 0.5 · 2/ω_max. Tension's transverse geometric stiffness k_s (1 − l0/l) is in the implicit
+// Hessian; compression's, −k_s (l0/l − 1), stays explicit and grows without bound as a segment
+// collapses: step() refuses a segment crushed below kMinSegmentRatio · l0.
 //
 // Precision: float positions/velocities (SI), internal sums in float. Memory: every array is
 // carved from a core::Arena at create(); after create() everything is noexcept, heap-free and
@@ -310,7 +309,8 @@ class Catheter {
   // for the contact spring alone).
   float max_contact_stiffness_n_per_m() const noexcept;
 
-  // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps of eq. 28.
+  // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps (linearly
+  // implicit axial springs and damping, explicit bending and contacts).
   // Refuses (state unchanged) a non-positive/non-finite period or one needing more substeps
   // than the budget (invalid_argument). If any position or velocity becomes non-finite, or a
   // segment ends shorter than kMinSegmentRatio of its rest length (crushed: a compression of
@@ -320,12 +320,12 @@ class Catheter {
 
   // A segment compressed below this fraction of l0 ends step() with numeric_error. Measured
   // (tests/model/runtime/stability_catheter_test.cpp, docs/stability.md): a clamped polymer
-  // catheter (EA 157 N) under a dead compressive tip load up to 0.1 EA folds over and settles,
-  // its shortest segment at 0.32 l0; from ~0.2 EA the fold crushes segments and the explicit
-  // chain pumps energy (kinetic energy to 2e3 J, segments stretched 23-fold, never
-  // non-finite). Refusing at 0.1 l0 stops that (peak kinetic energy within 1.4× the load's
-  // work); 0.25 l0 would hold it within the work but also refuses the violent, stable recoil
-  // of a 20 EA pull. Reaching it statically takes a compression of 0.9 EA.
+  // catheter (EA 157 N) under a dead compressive tip load up to 0.5 EA folds over and settles;
+  // at 1 and 2 EA the load crushes a segment and the step is refused (peak kinetic energy
+  // within 1.5× the load's work). With the explicit axial springs the fold crushed segments from
+  // ~0.2 EA and the chain pumped energy (kinetic energy to 2e3 J, segments stretched 23-fold,
+  // never non-finite); refusing at 0.1 l0 stopped that. Reaching it statically takes a
+  // compression of 0.9 EA.
   static constexpr float kMinSegmentRatio = 0.1F;
 
   void reset() noexcept;  // rest shape, zero velocity, forces and holds cleared, clamp off
@@ -398,7 +398,17 @@ class Catheter {
   // Scratch of the implicit solve (double: the axial blocks h² k_s reach 1e6 m at the stiffest
   // accepted EA, and float would lose the transverse directions to rounding).
   std::span<Eigen::Matrix3d> block_inverse_;  // N: inverse of the eliminated diagonal blocks
-  std::span<Eigen::Matrix3d> coupling_;       // N − 1: h² H_s of segment s (the block is −that)
+  // h² H_s of segment s = isotropic·I + along·û ûᵀ (the off-diagonal block is −that); kept in
+  // this form, the elimination needs matrix-vector products only.
+  struct SegmentCoupling {
+    Eigen::Vector3d unit = Eigen::Vector3d::Zero();
+    double isotropic = 0.0;
+    double along = 0.0;
+    Eigen::Vector3d times(const Eigen::Vector3d& v) const noexcept {
+      return isotropic * v + (along * unit.dot(v)) * unit;
+    }
+  };
+  std::span<SegmentCoupling> coupling_;       // N − 1
   std::span<Eigen::Vector3d> solution_;       // N: right-hand side, then the new velocities
   std::span<Vec3> segment_units_;             // N − 1: unit segment vectors of the substep
   std::span<float> segment_lengths_;          // N − 1
