@@ -106,15 +106,17 @@ core::Status load(Bench& bench, int step) noexcept {
   return status;
 }
 
-// `period_s` = one haptic period (all its substeps) or one stable substep (exactly one).
-void run(benchmark::State& state, bool one_substep) {
+// `timed_period_s` = one haptic period (all its substeps), or one stable substep (exactly one)
+// when negative.
+void run(benchmark::State& state, double timed_period_s) {
+  const bool one_substep = timed_period_s < 0.0;
   auto bench = make_catheter(static_cast<std::uint32_t>(state.range(0)));
   if (!bench) {
     state.SkipWithError(bench.error().message.c_str());
     return;
   }
   model::Catheter& catheter = bench->catheter;
-  const float period_s = one_substep ? catheter.stable_substep_s() : static_cast<float>(kPeriodS);
+  const float period_s = one_substep ? catheter.stable_substep_s() : static_cast<float>(timed_period_s);
   const auto substeps =
       model::Catheter::substeps_for(static_cast<double>(period_s), static_cast<double>(catheter.stable_substep_s()));
   // Bend it first (one load cycle), so the timed state is a moving, bent chain.
@@ -158,13 +160,17 @@ void run(benchmark::State& state, bool one_substep) {
 }
 
 // One haptic period of 1 ms: the trainer's per-cycle catheter cost (loads included).
-void BM_CatheterPeriod(benchmark::State& state) { run(state, false); }
+void BM_CatheterPeriod(benchmark::State& state) { run(state, kPeriodS); }
 BENCHMARK(BM_CatheterPeriod)->ArgName("particles")->Arg(11)->Arg(21)->Arg(41)->Arg(81)->Arg(161)
     ->Unit(benchmark::kMicrosecond);
 
 // One substep alone (step() over exactly one stable substep; loads included).
-void BM_CatheterSubstep(benchmark::State& state) { run(state, true); }
+void BM_CatheterSubstep(benchmark::State& state) { run(state, -1.0); }
 BENCHMARK(BM_CatheterSubstep)->ArgName("particles")->Arg(11)->Arg(21)->Arg(41)->Arg(81)->Arg(161);
+
+// One 100 µs period (a 10 kHz loop; the chain was bent at 1 ms periods first).
+void BM_CatheterPeriod100us(benchmark::State& state) { run(state, 1e-4); }
+BENCHMARK(BM_CatheterPeriod100us)->ArgName("particles")->Arg(11)->Arg(21)->Arg(41);
 
 }  // namespace
 
