@@ -29,7 +29,7 @@ using namespace trainer;
 
 constexpr double kPeriodS = 1e-3;               // the scene's 1 kHz loop
 constexpr std::uint32_t kBudget = 1000;         // large enough for N = 161 (384 substeps)
-constexpr std::size_t kArenaBytes = 64 * 1024;  // 161 particles: 161 · 7 · 12 B + flags ≈ 14 kB
+constexpr std::size_t kArenaBytes = 128 * 1024;  // 161 particles: ≈ 14 kB state + 28 kB solve
 constexpr int kLoadCycleSteps = 1000;           // the tip load turns once per 1000 periods
 
 const core::Expected<config::ModelDefinition>& default_catheter() {
@@ -74,6 +74,8 @@ core::Expected<Bench> make_catheter(std::uint32_t particle_count) {
   params.linear_density_kg_per_m = static_cast<float>(c.linear_density_kg_per_m);
   params.damping_n_s_per_m = static_cast<float>(c.damping_n_s_per_m);
   params.particle_count = particle_count;
+  params.contact_stiffness_n_per_m = model::catheter_contact_stiffness(
+      static_cast<float>(c.wall_stiffness_n_per_m), static_cast<float>(c.tool_stiffness_n_per_m));
   model::CatheterSetup setup;
   setup.haptic_period_s = static_cast<float>(kPeriodS);
   setup.max_substeps = kBudget;
@@ -104,15 +106,17 @@ core::Status load(Bench& bench, int step) noexcept {
   return status;
 }
 
-// `period_s` = one haptic period (all its substeps) or one stable substep (exactly one).
-void run(benchmark::State& state, bool one_substep) {
+// `timed_period_s` = one haptic period (all its substeps), or one stable substep (exactly one)
+// when negative.
+void run(benchmark::State& state, double timed_period_s) {
+  const bool one_substep = timed_period_s < 0.0;
   auto bench = make_catheter(static_cast<std::uint32_t>(state.range(0)));
   if (!bench) {
     state.SkipWithError(bench.error().message.c_str());
     return;
   }
   model::Catheter& catheter = bench->catheter;
-  const float period_s = one_substep ? catheter.stable_substep_s() : static_cast<float>(kPeriodS);
+  const float period_s = one_substep ? catheter.stable_substep_s() : static_cast<float>(timed_period_s);
   const auto substeps =
       model::Catheter::substeps_for(static_cast<double>(period_s), static_cast<double>(catheter.stable_substep_s()));
   // Bend it first (one load cycle), so the timed state is a moving, bent chain.
@@ -156,13 +160,17 @@ void run(benchmark::State& state, bool one_substep) {
 }
 
 // One haptic period of 1 ms: the trainer's per-cycle catheter cost (loads included).
-void BM_CatheterPeriod(benchmark::State& state) { run(state, false); }
+void BM_CatheterPeriod(benchmark::State& state) { run(state, kPeriodS); }
 BENCHMARK(BM_CatheterPeriod)->ArgName("particles")->Arg(11)->Arg(21)->Arg(41)->Arg(81)->Arg(161)
     ->Unit(benchmark::kMicrosecond);
 
 // One substep alone (step() over exactly one stable substep; loads included).
-void BM_CatheterSubstep(benchmark::State& state) { run(state, true); }
+void BM_CatheterSubstep(benchmark::State& state) { run(state, -1.0); }
 BENCHMARK(BM_CatheterSubstep)->ArgName("particles")->Arg(11)->Arg(21)->Arg(41)->Arg(81)->Arg(161);
+
+// One 100 µs period (a 10 kHz loop; the chain was bent at 1 ms periods first).
+void BM_CatheterPeriod100us(benchmark::State& state) { run(state, 1e-4); }
+BENCHMARK(BM_CatheterPeriod100us)->ArgName("particles")->Arg(11)->Arg(21)->Arg(41);
 
 }  // namespace
 

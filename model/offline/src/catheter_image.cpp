@@ -56,7 +56,12 @@ core::Expected<ImageWriter> make_catheter_writer(const CatheterImageInputs& inpu
 }  // namespace
 
 core::Expected<CatheterParametersV1> make_catheter_record(const CatheterImageInputs& inputs) {
-  auto chain = derive_catheter_chain(inputs.params);
+  // The substep keeps the definition's stiffer contact stable (contacts stay explicit), so the
+  // chain is derived with it whatever the caller put in params.contact_stiffness_n_per_m.
+  CatheterParams params = inputs.params;
+  params.contact_stiffness_n_per_m = catheter_contact_stiffness(
+      inputs.contact.wall_stiffness_n_per_m, inputs.contact.tool_stiffness_n_per_m);
+  auto chain = derive_catheter_chain(params);
   if (!chain) return std::move(chain).error();
   if (!inputs.start_m.allFinite()) return core::make_error("catheter: start_m is not finite");
   auto direction = catheter_rest_direction(inputs.direction);

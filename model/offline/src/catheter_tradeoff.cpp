@@ -63,6 +63,10 @@ std::array<double, 4> station_arc_lengths(const CatheterScenario& scenario, doub
 CatheterParams params_at(const CatheterStudySpec& spec, std::uint32_t particle_count) {
   CatheterParams params = spec.params;
   params.particle_count = particle_count;
+  // The wall contact is explicit: the substep keeps its stiffness stable (as modelc derives it
+  // from the definition's [contact]).
+  params.contact_stiffness_n_per_m = std::max(params.contact_stiffness_n_per_m,
+                                              static_cast<float>(spec.contact.stiffness_n_per_m));
   params.damping_n_s_per_m = static_cast<float>(
       static_cast<double>(spec.params.damping_n_s_per_m) *
       static_cast<double>(spec.params.particle_count) / static_cast<double>(particle_count));
@@ -145,8 +149,9 @@ class RuntimeChain {
 
 // The reference chain: the same model as the runtime Catheter — the same springs
 // (add_chain_forces<double>), damping, held particles (interpolated targets, hold forces
-// averaged over the step), contact law and semi-implicit Euler substeps, the substep count the
-// runtime computes — in double, so the reference carries no float32 rounding. (In float the
+// averaged over the step), contact law and linearly implicit substeps (axial springs and
+// damping implicit, Catheter::solve_velocities), the substep count the runtime computes — in
+// double, so the reference carries no float32 rounding. (In float the
 // stiff axial springs turn a position's rounding, ~1e-8 m, into ~1e-4 N of chatter at N = 81.)
 class ReferenceChain {
  public:
@@ -221,7 +226,7 @@ class ReferenceChain {
     const std::size_t n = positions_.size();
     for (std::uint32_t k = 0; k < substeps_; ++k) {
       const double hold_step = static_cast<double>(k + 1) * fraction;
-      for (std::size_t i = 0; i < n; ++i) forces_[i] = external_n_[i] - damping_n_s_per_m_ * velocities_[i];
+      for (std::size_t i = 0; i < n; ++i) forces_[i] = external_n_[i];  // damping: implicit
       add_chain_forces<double>(positions_, stiffness_, forces_, held_);
       for (const WallContact& contact : wall_) {
         const std::size_t i = contact.particle;
@@ -233,17 +238,20 @@ class ReferenceChain {
                        0.0, contact_.max_force_n);
         forces_[i] += magnitude * wall_normal_;
       }
-      const double dt_over_mass = dt_s / mass_kg_;
+      solve_velocities(dt_s, period_s);
       for (std::size_t i = 0; i < n; ++i) {
         if (held_[i] != 0) {
-          hold_forces_n_[i] += fraction * forces_[i];
+          Vector force = forces_[i] - damping_n_s_per_m_ * solution_[i];
+          if (i > 0) force -= coupling_[i - 1] * (solution_[i] - solution_[i - 1]) / dt_s;
+          if (i + 1 < n) force -= coupling_[i] * (solution_[i] - solution_[i + 1]) / dt_s;
+          hold_forces_n_[i] += fraction * force;
           const Vector start = saved_positions_[i];
           positions_[i] = hold_step >= 1.0 ? targets_m_[i]
                                            : Vector(start + hold_step * (targets_m_[i] - start));
           velocities_[i] = (targets_m_[i] - start) / period_s;
           continue;
         }
-        velocities_[i] += dt_over_mass * forces_[i];
+        velocities_[i] = solution_[i];
         positions_[i] += dt_s * velocities_[i];
       }
     }
@@ -257,6 +265,65 @@ class ReferenceChain {
 
  private:
   ReferenceChain() = default;
+
+  // Catheter::solve_velocities in double: ((m + h b) I + h² H_axial) v' = m v + h F, held
+  // particles eliminated, block Thomas elimination into solution_.
+  void solve_velocities(double h, double period_s) {
+    using Matrix = Eigen::Matrix3d;
+    const std::size_t n = positions_.size();
+    coupling_.resize(n - 1);
+    block_inverse_.resize(n);
+    solution_.resize(n);
+    const double h2k = h * h * stiffness_.axial_n_per_m;
+    for (std::size_t s = 0; s + 1 < n; ++s) {
+      const Vector segment = positions_[s + 1] - positions_[s];
+      const double length = segment.norm();
+      if (!(length > 0.0)) {
+        coupling_[s].setZero();
+        continue;
+      }
+      const Vector unit = segment / length;
+      const double g = std::clamp(1.0 - stiffness_.rest_length_m / length, 0.0, 1.0);
+      coupling_[s] = (h2k * (1.0 - g)) * (unit * unit.transpose());
+      coupling_[s].diagonal().array() += h2k * g;
+    }
+    const auto hold_velocity = [&](std::size_t i) {
+      return Vector((targets_m_[i] - saved_positions_[i]) / period_s);
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      if (held_[i] != 0) {
+        solution_[i] = hold_velocity(i);
+        block_inverse_[i].setIdentity();
+        continue;
+      }
+      Matrix block = Matrix::Identity() * (mass_kg_ + h * damping_n_s_per_m_);
+      Vector rhs = mass_kg_ * velocities_[i] + h * forces_[i];
+      if (i > 0) {
+        block += coupling_[i - 1];
+        if (held_[i - 1] != 0) {
+          rhs += coupling_[i - 1] * solution_[i - 1];
+        } else {
+          const Matrix factor = coupling_[i - 1] * block_inverse_[i - 1];
+          block -= factor * coupling_[i - 1];
+          rhs += factor * solution_[i - 1];
+        }
+      }
+      if (i + 1 < n) {
+        block += coupling_[i];
+        if (held_[i + 1] != 0) rhs += coupling_[i] * hold_velocity(i + 1);
+      }
+      block_inverse_[i] = block.inverse();
+      solution_[i] = rhs;
+    }
+    for (std::size_t k = n; k-- > 0;) {
+      if (held_[k] != 0) continue;
+      if (k + 1 < n && held_[k + 1] == 0) solution_[k] += coupling_[k] * solution_[k + 1];
+      solution_[k] = block_inverse_[k] * solution_[k];
+    }
+  }
+
+  std::vector<Eigen::Matrix3d> coupling_, block_inverse_;
+  std::vector<Vector> solution_;
   ChainStiffness<double> stiffness_{};
   double mass_kg_ = 0.0;
   double damping_n_s_per_m_ = 0.0;

@@ -1,6 +1,7 @@
 // Particle catheter: creation from parameters or from an image's data (the derivation itself is
-// catheter_chain.cpp), and the semi-implicit Euler loop (Basdogan eq. 27–28). The force law is
-// the shared template in catheter.hpp.
+// catheter_chain.cpp), and the substep loop: linearly implicit axial springs and damping (a
+// block-tridiagonal solve), explicit bending and contacts (Basdogan eq. 27–28). The force law
+// is the shared template in catheter.hpp.
 #include "trainer/model/catheter.hpp"
 
 #include <algorithm>
@@ -103,6 +104,21 @@ core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
     auto taken = take(*out, what);
     if (!taken) return std::move(taken).error();
   }
+  auto block_inverse = arena.allocate_array<Eigen::Matrix3d>(n, "catheter solve blocks");
+  if (!block_inverse) return std::move(block_inverse).error();
+  catheter.block_inverse_ = block_inverse.value();
+  auto coupling = arena.allocate_array<SegmentCoupling>(n - 1, "catheter solve couplings");
+  if (!coupling) return std::move(coupling).error();
+  catheter.coupling_ = coupling.value();
+  auto solution = arena.allocate_array<Eigen::Vector3d>(n, "catheter solve vector");
+  if (!solution) return std::move(solution).error();
+  catheter.solution_ = solution.value();
+  auto units = arena.allocate_array<Vec3>(n - 1, "catheter segment units");
+  if (!units) return std::move(units).error();
+  catheter.segment_units_ = units.value();
+  auto lengths = arena.allocate_array<float>(n - 1, "catheter segment lengths");
+  if (!lengths) return std::move(lengths).error();
+  catheter.segment_lengths_ = lengths.value();
   auto held = arena.allocate_array<std::uint8_t>(n, "catheter held flags");
   if (!held) return std::move(held).error();
   catheter.held_ = held.value();
@@ -197,11 +213,44 @@ void Catheter::reset() noexcept {
   plane_count_ = 0;
 }
 
-bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
+void Catheter::explicit_forces(float fraction) noexcept {
   const std::span<Vec3> forces = forces_.first(count_);
-  for (std::uint32_t i = 0; i < count_; ++i) forces[i] = external_n_[i] - damping_n_s_per_m_ * velocities_[i];
-  add_chain_forces<float>(std::span<const Vec3>(positions_.data(), count_), stiffness_, forces,
-                          std::span<const std::uint8_t>(held_.data(), count_));
+  for (std::uint32_t i = 0; i < count_; ++i) forces[i] = external_n_[i];
+  // Segments once: the axial forces at the current positions and the units bending needs.
+  const float k_s = stiffness_.axial_n_per_m;
+  const float l0 = stiffness_.rest_length_m;
+  for (std::uint32_t s = 0; s + 1 < count_; ++s) {
+    const Vec3 segment = positions_[s + 1] - positions_[s];
+    const float length = segment.norm();
+    segment_lengths_[s] = length;
+    if (!(length > 0.0F)) {  // coincident particles: no defined direction, no force
+      segment_units_[s].setZero();
+      continue;
+    }
+    const Vec3 unit = segment / length;
+    segment_units_[s] = unit;
+    const Vec3 force = (k_s * (length - l0)) * unit;
+    forces[s] += force;
+    forces[s + 1] -= force;
+  }
+  Vec3 gradient_a;
+  Vec3 gradient_b;
+  const std::span<const std::uint8_t> held(held_.data(), count_);
+  for (std::uint32_t i = 1; i + 1 < count_; ++i) {
+    if (!(segment_lengths_[i - 1] > 0.0F) || !(segment_lengths_[i] > 0.0F)) continue;
+    bending_gradient_of_units<float>(segment_units_[i - 1], segment_lengths_[i - 1], segment_units_[i],
+                                     segment_lengths_[i], hinge_stiffness(stiffness_, held, i),
+                                     gradient_a, gradient_b);
+    forces[i - 1] += gradient_a;
+    forces[i] -= gradient_a - gradient_b;
+    forces[i + 1] -= gradient_b;
+  }
+  if (stiffness_.root_clamped && segment_lengths_[0] > 0.0F) {
+    bending_gradient_of_units<float>(stiffness_.root_tangent, 1.0F, segment_units_[0], segment_lengths_[0],
+                                     2.0F * stiffness_.bending_n_m_per_rad, gradient_a, gradient_b);
+    forces[0] += gradient_b;
+    forces[1] -= gradient_b;
+  }
   for (std::size_t k = 0; k < plane_count_; ++k) {
     const ContactPlane& plane = planes_[k];
     const float w = plane.weight_b;
@@ -217,19 +266,104 @@ bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
     if (w != 0.0F) forces[plane.particle_b] += w * force;
     plane_forces_n_[k] += fraction * force;
   }
-  const float dt_over_mass = dt_s / mass_kg_;
-  bool finite = true;
+}
+
+void Catheter::solve_velocities(float dt_s, float period_fraction) noexcept {
+  // Linearly implicit Euler for the axial springs and the damping, explicit for the rest:
+  //   m (v' − v) = h [F(p) − b v' − H (p' − p)],  p' = p + h v'
+  //   ⇒ ((m + h b) I + h² H) v' = m v + h F(p),
+  // H the axial springs' Hessian, per segment k_s [g I + (1 − g) û ûᵀ] with
+  // g = max(0, 1 − l0/l) (tension's geometric stiffness; compression's negative one stays in
+  // the explicit force). SPD, block tridiagonal: block Thomas (LDLᵀ) elimination in double.
+  const double h = static_cast<double>(dt_s);
+  const double h2k = h * h * static_cast<double>(stiffness_.axial_n_per_m);
+  const double l0 = static_cast<double>(stiffness_.rest_length_m);
+  const double mass = static_cast<double>(mass_kg_);
+  const double diagonal = mass + h * static_cast<double>(damping_n_s_per_m_);
+  for (std::uint32_t s = 0; s + 1 < count_; ++s) {
+    SegmentCoupling& coupling = coupling_[s];
+    const double length = static_cast<double>(segment_lengths_[s]);
+    if (!(length > 0.0)) {
+      coupling = SegmentCoupling{};
+      continue;
+    }
+    const double g = std::clamp(1.0 - l0 / length, 0.0, 1.0);
+    coupling.unit = segment_units_[s].cast<double>();
+    coupling.isotropic = h2k * g;
+    coupling.along = h2k * (1.0 - g);
+  }
+  // Forward elimination (block LDLᵀ): D'_i = D_i − C D'_{i−1}⁻¹ C, r'_i = r_i − C D'_{i−1}⁻¹ r'_{i−1}
+  // with C = −(a I + b û ûᵀ) symmetric, so with w = D'⁻¹ û:
+  //   C D'⁻¹ C = a² D'⁻¹ + a b (w ûᵀ + û wᵀ) + b² (û·w) û ûᵀ,   C D'⁻¹ r' = −(a y + b (û·y) û), y = D'⁻¹ r'.
+  // A held particle's velocity is known (its hold path): its row is the identity, and its
+  // couplings move to the free neighbours' right-hand sides.
+  const float dt_over_period = dt_s / period_fraction;  // the step's period
+  const auto hold_velocity = [&](std::uint32_t i) {
+    return Eigen::Vector3d(((hold_targets_m_[i] - saved_positions_[i]) / dt_over_period).cast<double>());
+  };
   for (std::uint32_t i = 0; i < count_; ++i) {
     if (held_[i] != 0) {
-      // The pin balances every force on the particle: the holder feels them.
-      hold_forces_n_[i] += fraction * forces[i];
+      solution_[i] = hold_velocity(i);
+      block_inverse_[i].setIdentity();
+      continue;
+    }
+    Eigen::Matrix3d block = Eigen::Matrix3d::Identity() * diagonal;
+    Eigen::Vector3d rhs = mass * velocities_[i].cast<double>() + h * forces_[i].cast<double>();
+    const auto add_segment = [&block](const SegmentCoupling& c) {
+      block.diagonal().array() += c.isotropic;
+      block.noalias() += c.along * (c.unit * c.unit.transpose());
+    };
+    if (i > 0) add_segment(coupling_[i - 1]);  // the segments at i
+    if (i + 1 < count_) add_segment(coupling_[i]);
+    if (i > 0) {
+      const SegmentCoupling& c = coupling_[i - 1];
+      if (held_[i - 1] != 0) {
+        rhs += c.times(solution_[i - 1]);  // −C v_held
+      } else {
+        const Eigen::Matrix3d& previous = block_inverse_[i - 1];
+        const Eigen::Vector3d w = previous * c.unit;
+        const Eigen::Vector3d y = previous * solution_[i - 1];
+        block.noalias() -= (c.along * c.along * c.unit.dot(w)) * (c.unit * c.unit.transpose());
+        if (c.isotropic != 0.0) {
+          block.noalias() -= (c.isotropic * c.isotropic) * previous;
+          block.noalias() -= (c.isotropic * c.along) * (w * c.unit.transpose() + c.unit * w.transpose());
+        }
+        rhs += c.times(y);
+      }
+    }
+    if (i + 1 < count_ && held_[i + 1] != 0) rhs += coupling_[i].times(hold_velocity(i + 1));
+    block_inverse_[i] = block.inverse();
+    solution_[i] = rhs;
+  }
+  // Back substitution: v_i = D'_i⁻¹ (r'_i − C_i v_{i+1}), free neighbours only.
+  for (std::uint32_t k = count_; k-- > 0;) {
+    if (held_[k] != 0) continue;
+    if (k + 1 < count_ && held_[k + 1] == 0) solution_[k] += coupling_[k].times(solution_[k + 1]);
+    solution_[k] = block_inverse_[k] * solution_[k];
+  }
+}
+
+bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
+  explicit_forces(fraction);
+  solve_velocities(dt_s, fraction);
+  bool finite = true;
+  const double h = static_cast<double>(dt_s);
+  for (std::uint32_t i = 0; i < count_; ++i) {
+    if (held_[i] != 0) {
+      // The pin balances every force on the particle over the substep, the implicit ones at
+      // their end-of-substep values: F(p) − b v' − h Σ_s H_s (v'_i − v'_j). The holder feels it.
+      Eigen::Vector3d force = forces_[i].cast<double>() -
+                              static_cast<double>(damping_n_s_per_m_) * solution_[i];
+      if (i > 0) force -= coupling_[i - 1].times(solution_[i] - solution_[i - 1]) / h;
+      if (i + 1 < count_) force -= coupling_[i].times(solution_[i] - solution_[i + 1]) / h;
+      hold_forces_n_[i] += fraction * force.cast<float>();
       const Vec3 start = saved_positions_[i];
       positions_[i] = hold_step >= 1.0F ? hold_targets_m_[i] : Vec3(start + hold_step * (hold_targets_m_[i] - start));
       velocities_[i] = (hold_targets_m_[i] - start) / (dt_s / fraction);
       continue;
     }
-    velocities_[i] += dt_over_mass * forces[i];  // eq. 28: v_{t+Δt} = v_t + Δt a_t
-    positions_[i] += dt_s * velocities_[i];      //          p_{t+Δt} = p_t + Δt v_{t+Δt}
+    velocities_[i] = solution_[i].cast<float>();  // v_{t+Δt} from the implicit solve
+    positions_[i] += dt_s * velocities_[i];       // p_{t+Δt} = p_t + Δt v_{t+Δt}
     finite = finite && positions_[i].allFinite() && velocities_[i].allFinite();
   }
   return finite;

@@ -44,19 +44,21 @@ core::Expected<void> check_params(const CatheterParams& params) {
     return catheter_refusal("damping_n_s_per_m = " + catheter_number(params.damping_n_s_per_m) +
                             ": expected >= 0");
   }
+  if (!std::isfinite(params.contact_stiffness_n_per_m) || params.contact_stiffness_n_per_m < 0.0F) {
+    return catheter_refusal("contact stiffness = " +
+                            catheter_number(params.contact_stiffness_n_per_m) + ": expected >= 0");
+  }
   return {};
 }
 
 }  // namespace
 
-double catheter_stable_substep_s(double mass_kg, double axial_n_per_m, double bending_n_m_per_rad,
-                                 double rest_length_m, double damping_n_s_per_m) noexcept {
+double catheter_stable_substep_s(double mass_kg, double bending_n_m_per_rad, double rest_length_m,
+                                 double contact_stiffness_n_per_m) noexcept {
   const double omega_max_squared =
-      4.0 * axial_n_per_m / mass_kg +
-      20.0 * bending_n_m_per_rad / (mass_kg * rest_length_m * rest_length_m);
-  double substep_s = 0.5 * 2.0 / std::sqrt(omega_max_squared);
-  if (damping_n_s_per_m > 0.0) substep_s = std::min(substep_s, mass_kg / damping_n_s_per_m);
-  return substep_s;
+      20.0 * bending_n_m_per_rad / (mass_kg * rest_length_m * rest_length_m) +
+      contact_stiffness_n_per_m / mass_kg;
+  return 0.5 * 2.0 / std::sqrt(omega_max_squared);
 }
 
 core::Expected<CatheterChain> derive_catheter_chain(const CatheterParams& params) {
@@ -76,8 +78,8 @@ core::Expected<CatheterChain> derive_catheter_chain(const CatheterParams& params
   chain.radius_m = params.outer_radius_m;
   chain.damping_n_s_per_m = params.damping_n_s_per_m;
   chain.stable_substep_s = static_cast<float>(
-      catheter_stable_substep_s(mass_kg, axial_n_per_m, bending_n_m, rest_length_m,
-                                static_cast<double>(params.damping_n_s_per_m)));
+      catheter_stable_substep_s(mass_kg, bending_n_m, rest_length_m,
+                                static_cast<double>(params.contact_stiffness_n_per_m)));
   return chain;
 }
 
@@ -110,13 +112,15 @@ core::Expected<std::uint32_t> catheter_substeps_per_period(const CatheterParams&
     return catheter_refusal(
         "a haptic period of " + catheter_number(haptic_period_s) + " s needs " +
         std::to_string(needed) + " substeps of at most " + catheter_number(chain.stable_substep_s) +
-        " s (stable step from EA = " + catheter_number(params.axial_stiffness_n) +
-        " N, EI = " + catheter_number(params.bending_stiffness_n_m2) + " N·m², particle mass " +
+        " s (stable step of the explicit bending and contact from EI = " +
+        catheter_number(params.bending_stiffness_n_m2) + " N·m², contact stiffness " +
+        catheter_number(params.contact_stiffness_n_per_m) + " N/m, particle mass " +
         catheter_number(chain.particle_mass_kg) + " kg, segment " +
-        catheter_number(chain.rest_length_m) + " m, damping " +
+        catheter_number(chain.rest_length_m) + " m; EA = " +
+        catheter_number(params.axial_stiffness_n) + " N and damping " +
         catheter_number(chain.damping_n_s_per_m) +
-        " N·s/m) but max_substeps = " + std::to_string(max_substeps) +
-        ": raise max_substeps, use fewer particles, a softer EA, or a shorter period");
+        " N·s/m are implicit) but max_substeps = " + std::to_string(max_substeps) +
+        ": raise max_substeps, use fewer particles, a softer EI or contact, or a shorter period");
   }
   return static_cast<std::uint32_t>(needed);
 }

@@ -24,6 +24,8 @@ CatheterModelData catheter_model_data(const ModelImage& image) noexcept {
   data.params.linear_density_kg_per_m = record.linear_density_kg_per_m;
   data.params.damping_n_s_per_m = record.damping_n_s_per_m;
   data.params.particle_count = record.particle_count;
+  data.params.contact_stiffness_n_per_m =
+      catheter_contact_stiffness(record.wall_stiffness_n_per_m, record.tool_stiffness_n_per_m);
   data.chain.particle_count = record.particle_count;
   data.chain.rest_length_m = record.rest_length_m;
   data.chain.particle_mass_kg = record.particle_mass_kg;

@@ -55,7 +55,8 @@ Expected<CatheterParametersV1> read_parameters(const ModelImage& image, std::str
   }
   if (bytes.size() != sizeof(CatheterParametersV1)) {
     return image_error(label, std::string(kRecord) + "is " + std::to_string(bytes.size()) +
-                                  " bytes, record version 1 has " +
+                                  " bytes, record version " +
+                                  std::to_string(kCatheterRecordVersion) + " has " +
                                   std::to_string(sizeof(CatheterParametersV1)));
   }
   const auto record =
@@ -197,15 +198,15 @@ Expected<void> check_derivation(const CatheterParametersV1& r, std::string_view 
     }
   }
   const double bound = catheter_stable_substep_s(
-      d(r.particle_mass_kg), d(r.axial_stiffness_n_per_m), d(r.bending_stiffness_n_m_per_rad),
-      d(r.rest_length_m), d(r.damping_n_s_per_m));
+      d(r.particle_mass_kg), d(r.bending_stiffness_n_m_per_rad), d(r.rest_length_m),
+      d(catheter_contact_stiffness(r.wall_stiffness_n_per_m, r.tool_stiffness_n_per_m)));
   if (!(d(r.stable_substep_s) <= bound * (1.0 + kDerivationTolerance))) {
     return field_error(
         label, "stable_substep_s",
         "is " + number(r.stable_substep_s) + " s, above the stable step " +
             number(static_cast<float>(bound)) +
-            " s of the record's own mass, stiffnesses, segment and damping: the chain "
-            "would be integrated unstably");
+            " s of the record's own mass, bending stiffness, segment and contact "
+            "stiffnesses: the chain would be integrated unstably");
   }
   const float limit = contact_stiffness_limit_n_per_m(r.particle_mass_kg, r.stable_substep_s);
   for (const NamedFloat& field : {NamedFloat{"wall_stiffness_n_per_m", r.wall_stiffness_n_per_m},

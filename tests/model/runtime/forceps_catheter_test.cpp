@@ -31,6 +31,7 @@ Catheter make_catheter(core::Arena& arena) {
   params.linear_density_kg_per_m = 1.65e-3F;
   params.damping_n_s_per_m = 5e-4F;
   params.particle_count = 11;
+  params.contact_stiffness_n_per_m = 300.0F;  // the forceps' contact (catheter_cbd's tool stiffness)
   CatheterSetup setup;
   setup.start_position_m = Vec3(-0.1F, 0.0F, 0.0F);
   setup.direction = Vec3::UnitX();

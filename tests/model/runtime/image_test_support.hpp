@@ -231,6 +231,7 @@ struct SmallCatheter {
     inputs.hold_start = true;
     inputs.gravity_m_per_s2 = Eigen::Vector3f(0.0F, 0.0F, -9.81F);
     inputs.contact = {500.0F, 0.02F, 300.0F, 3000.0F, 0.6F, 4.0F};
+    inputs.params.contact_stiffness_n_per_m = 500.0F;  // max(wall, tool): what modelc derives with
   }
 
   CatheterParametersV1 record() const {

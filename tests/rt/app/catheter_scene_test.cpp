@@ -97,9 +97,10 @@ TEST(CatheterScene, RunsWithNoHeapAllocationsOverALongRun) {
   ASSERT_NE(catheter, nullptr);
   EXPECT_EQ(catheter->name, "catheter");
   EXPECT_EQ(catheter->particle_count, 21U);
-  // docs/catheter.md: 1/ω_max = 23.7 µs for this catheter, 43 substeps per 1 ms.
-  EXPECT_NEAR(catheter->stable_substep_s, 23.66e-6, 0.01e-6);
-  EXPECT_EQ(catheter->substeps_per_period, 43U);
+  // docs/catheter.md: 1/ω_max = 179.6 µs for this catheter (explicit bending and its 500 N/m
+  // wall contact; axial springs and damping implicit), 6 substeps per 1 ms.
+  EXPECT_NEAR(catheter->stable_substep_s, 179.56e-6, 0.01e-6);
+  EXPECT_EQ(catheter->substeps_per_period, 6U);
   EXPECT_EQ(catheter->max_substeps, 64U);
   EXPECT_GT(catheter->arena_bytes, 21U * 7U * sizeof(float) * 3U);  // 7 arrays of N vectors
   ASSERT_EQ(catheter->final_positions_m.size(), 21U);
@@ -112,11 +113,11 @@ TEST(CatheterScene, RunsWithNoHeapAllocationsOverALongRun) {
   const nlohmann::json report = report_json(*result);
   ASSERT_EQ(report["models"].size(), 1U);
   EXPECT_EQ(report["models"][0]["kind"], "catheter");
-  EXPECT_EQ(report["models"][0]["substeps_per_period"], 43);
+  EXPECT_EQ(report["models"][0]["substeps_per_period"], 6);
   EXPECT_EQ(report["models"][0]["particle_count"], 21);
   EXPECT_EQ(report["metrics"]["samples"], kSoakCycles);
   EXPECT_EQ(report["metrics"]["refused_samples"], 0);
-  EXPECT_NE(report_summary(*result).find("43 substeps per 1000.0 us period"), std::string::npos)
+  EXPECT_NE(report_summary(*result).find("6 substeps per 1000.0 us period"), std::string::npos)
       << report_summary(*result);
 }
 
@@ -229,8 +230,8 @@ TEST_F(EditedCatheterScene, UnderGravityItHangsBelowItsIntroducerAndSettles) {
 }
 
 TEST_F(EditedCatheterScene, CatheterUnstableWithinItsBudgetIsRefusedBeforeArming) {
-  // The default needs 43 substeps of 23.7 µs per 1 ms period; a budget of 40 cannot hold it.
-  auto result = run_trainer(simulated(scene_with("max_substeps = 64", "max_substeps = 40"), 10));
+  // The default needs 6 substeps of 179.6 µs per 1 ms period; a budget of 5 cannot hold it.
+  auto result = run_trainer(simulated(scene_with("max_substeps = 64", "max_substeps = 5"), 10));
   ASSERT_FALSE(result);
   const std::string& message = result.error().message;
   EXPECT_NE(message.find((root_ / "scenes/catheter.toml").string()), std::string::npos) << message;
@@ -238,13 +239,14 @@ TEST_F(EditedCatheterScene, CatheterUnstableWithinItsBudgetIsRefusedBeforeArming
                          ", built from " + (root_ / "models/catheter.toml").string() + ")"),
             std::string::npos)
       << message;
-  EXPECT_NE(message.find("needs 43 substeps"), std::string::npos) << message;
-  EXPECT_NE(message.find("max_substeps = 40"), std::string::npos) << message;
+  EXPECT_NE(message.find("needs 6 substeps"), std::string::npos) << message;
+  EXPECT_NE(message.find("max_substeps = 5"), std::string::npos) << message;
 
-  // The same file with more particles needs more substeps (85 at N = 41) than its 64.
-  auto dense = run_trainer(simulated(scene_with("particle_count = 21", "particle_count = 41"), 10));
+  // The same file with more particles needs more substeps (the explicit bending's ω² grows as
+  // N⁴: 14 at N = 41, 112 at N = 121) than its 64.
+  auto dense = run_trainer(simulated(scene_with("particle_count = 21", "particle_count = 121"), 10));
   ASSERT_FALSE(dense);
-  EXPECT_NE(dense.error().message.find("needs 85 substeps"), std::string::npos)
+  EXPECT_NE(dense.error().message.find("needs 112 substeps"), std::string::npos)
       << dense.error().message;
 }
 

@@ -111,7 +111,9 @@ offline::CatheterImageInputs catheter_inputs_from(const config::ModelDefinition&
                    .axial_stiffness_n = f(c.axial_stiffness_n),
                    .linear_density_kg_per_m = f(c.linear_density_kg_per_m),
                    .damping_n_s_per_m = f(c.damping_n_s_per_m),
-                   .particle_count = c.particle_count};
+                   .particle_count = c.particle_count,
+                   .contact_stiffness_n_per_m = model::catheter_contact_stiffness(
+                       f(c.wall_stiffness_n_per_m), f(c.tool_stiffness_n_per_m))};
   inputs.start_m = vector(c.start_m);
   inputs.direction = vector(c.direction);
   inputs.max_substeps = c.max_substeps;

@@ -305,6 +305,8 @@ nlohmann::json run_catheter(const Options& options, const std::string& name,
   spec.params.linear_density_kg_per_m = static_cast<float>(cfg.linear_density_kg_per_m);
   spec.params.damping_n_s_per_m = static_cast<float>(cfg.damping_n_s_per_m);
   spec.params.particle_count = cfg.particle_count;
+  spec.params.contact_stiffness_n_per_m = trainer::model::catheter_contact_stiffness(
+      static_cast<float>(cfg.wall_stiffness_n_per_m), static_cast<float>(cfg.tool_stiffness_n_per_m));
   spec.max_substeps = cfg.max_substeps;
   spec.contact.stiffness_n_per_m = cfg.wall_stiffness_n_per_m;
   spec.contact.damping_n_s_per_m = cfg.wall_damping_n_s_per_m;

@@ -1,7 +1,8 @@
 // The particle catheter at run time (Basdogan §V-C-2, eq. 27–28; METHODS.md §2): N particles
 // uniformly along the centreline joined by linear (axial) springs and torsional (bending)
 // springs, viscous dissipation per particle, external forces, held particles (forceps jaws,
-// introducer) and an optional clamped start. Integrated by semi-implicit Euler (eq. 28),
+// introducer) and an optional clamped start. Integrated linearly implicitly in the axial springs
+// and the damping and explicitly (semi-implicit Euler, eq. 28) in the bending and the contacts,
 // sub-stepped inside one haptic period at a step the model computes for itself.
 //
 // Mapping of the beam to the chain (derivation in docs/catheter.md):
@@ -22,16 +23,14 @@
 //   insertion, docs/tradeoff-models.md); with them at second order.
 //   Dissipation −b v with b in N·s/m per particle (not a damping ratio).
 //
-// Stability: semi-implicit Euler is stable for Δt < 2/ω_max. ω_max² ≤ 4 k_s/m (axial chain)
-// + 20 k_b/(m l0²) (bending chain: the interior stencil k_b/l0² [1 −4 6 −4 1] has spectral
-// radius 16; 20 covers the 2 k_b root hinge by Gershgorin; held particles are moved, not
-// integrated, so only free rows and columns count, and a free particle next to a 2 k_b grasp
-// hinge has row sum at most 2 + 6 + 4 = 12). The stable substep is
-// 0.5 · 2/ω_max, and also ≤ m/b so the explicit damping never overshoots. Tension adds a
-// transverse geometric stiffness T/l = k_s (1 − l0/l) per segment, below k_s at any stretch
-// (a tip pulled with 20 EA stretches the chain 20-fold and settles); compression makes it
-// negative, −k_s (l0/l − 1), which grows without bound as a segment collapses: step() refuses
-// a segment crushed below kMinSegmentRatio · l0.
+// Stability (docs/catheter.md, "Integration and stable step"): each substep solves
+// ((m + h b) I + h² H_axial) v' = m v + h F(p) (block tridiagonal, 3×3 blocks, double), which
+// has no step limit; what stays explicit sets it: ω_max² ≤ 20 k_b/(m l0²) (the bending stencil
+// k_b/l0² [1 −4 6 −4 1] has spectral radius 16, 20 covers the 2 k_b root and grasp hinges by
+// Gershgorin) + k_contact/m (CatheterParams::contact_stiffness_n_per_m), substep
+// 0.5 · 2/ω_max. Tension's transverse geometric stiffness k_s (1 − l0/l) is in the implicit
+// Hessian; compression's, −k_s (l0/l − 1), stays explicit and grows without bound as a segment
+// collapses: step() refuses a segment crushed below kMinSegmentRatio · l0.
 //
 // Precision: float positions/velocities (SI), internal sums in float. Memory: every array is
 // carved from a core::Arena at create(); after create() everything is noexcept, heap-free and
@@ -42,6 +41,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <type_traits>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // cross()
@@ -96,10 +96,41 @@ struct ChainStiffness {
   Eigen::Matrix<Scalar, 3, 1> root_tangent = Eigen::Matrix<Scalar, 3, 1>::UnitX();  // unit
 };
 
-// Angle (rad, 0..π) between segments a and b.
+// atan2(sine, cosine) for sine ≥ 0 (an angle in [0, π]) in float without the libm call, which
+// was ~60 % of the catheter's cost: the octant is reduced to |t| ≤ tan(π/8) and atan(t) is the
+// classic degree-9 odd minimax polynomial (Cephes' atanf), within 2 float ulp of std::atan2 over
+// [0, π] (CatheterForces.FastAngleIsStdAtan2ToFloatPrecision measures it). NaN in, NaN out.
+inline float catheter_angle(float sine, float cosine) noexcept {
+  constexpr float kPi = 3.14159265358979F;
+  const float magnitude = std::fabs(cosine);
+  // First octant pair: t = min/max in [0, 1], angle = atan(t) or π/2 − atan(t).
+  const bool swapped = sine > magnitude;
+  const float numerator = swapped ? magnitude : sine;
+  const float denominator = swapped ? sine : magnitude;
+  float t = denominator > 0.0F ? numerator / denominator : 0.0F;
+  float offset = 0.0F;
+  if (t > 0.4142135623730950F) {  // tan(π/8): atan(t) = π/4 + atan((t − 1)/(t + 1))
+    t = (t - 1.0F) / (t + 1.0F);
+    offset = 0.25F * kPi;
+  }
+  const float z = t * t;
+  const float atan_t =
+      offset + ((((8.05374449538e-2F * z - 1.38776856032e-1F) * z + 1.99777106478e-1F) * z -
+                 3.33329491539e-1F) * z * t + t);
+  const float first = swapped ? 0.5F * kPi - atan_t : atan_t;
+  const float angle = cosine < 0.0F ? kPi - first : first;
+  return (sine != sine || cosine != cosine) ? sine + cosine : angle;  // NaN propagates
+}
+
+// Angle (rad, 0..π) between segments a and b: std::atan2 in double (the offline static check),
+// catheter_angle() in float (run time).
 template <class Scalar>
 Scalar segment_angle(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<Scalar, 3, 1>& b) noexcept {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
+  if constexpr (std::is_same_v<Scalar, float>) {
+    return catheter_angle(a.cross(b).norm(), a.dot(b));
+  } else {
+    return std::atan2(a.cross(b).norm(), a.dot(b));
+  }
 }
 
 // Gradient of E = ½ k θ² with respect to the segment vectors a and b. With â, b̂ unit:
@@ -107,6 +138,30 @@ Scalar segment_angle(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<S
 // so ∂E/∂a = −k (θ/sinθ)(b̂ − cosθ â)/|a|. θ/sinθ is smooth at θ = 0 (→ 1, series used below
 // 1e-4 rad), so the straight chain is not a singular direction. Near θ = π (a segment folded
 // back on its neighbour, unphysical) the factor is capped. Zero-length segments give zero.
+// The same from the unit segments and their lengths (> 0), for callers that have them.
+template <class Scalar>
+void bending_gradient_of_units(const Eigen::Matrix<Scalar, 3, 1>& unit_a, Scalar length_a,
+                               const Eigen::Matrix<Scalar, 3, 1>& unit_b, Scalar length_b,
+                               Scalar stiffness, Eigen::Matrix<Scalar, 3, 1>& gradient_a,
+                               Eigen::Matrix<Scalar, 3, 1>& gradient_b) noexcept {
+  const Scalar sine = unit_a.cross(unit_b).norm();
+  const Scalar cosine = unit_a.dot(unit_b);
+  Scalar theta;
+  if constexpr (std::is_same_v<Scalar, float>) {
+    theta = catheter_angle(sine, cosine);
+  } else {
+    theta = std::atan2(sine, cosine);
+  }
+  Scalar theta_over_sine = Scalar(1) + theta * theta / Scalar(6);
+  if (theta > Scalar(1e-4)) {
+    constexpr Scalar kMaxFactor = Scalar(1e4);
+    theta_over_sine = sine > theta / kMaxFactor ? theta / sine : kMaxFactor;
+  }
+  const Scalar scale = -stiffness * theta_over_sine;
+  gradient_a = scale * (unit_b - cosine * unit_a) / length_a;
+  gradient_b = scale * (unit_a - cosine * unit_b) / length_b;
+}
+
 template <class Scalar>
 void bending_gradient(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<Scalar, 3, 1>& b,
                       Scalar stiffness, Eigen::Matrix<Scalar, 3, 1>& gradient_a,
@@ -118,19 +173,9 @@ void bending_gradient(const Eigen::Matrix<Scalar, 3, 1>& a, const Eigen::Matrix<
     gradient_b.setZero();
     return;
   }
-  const Eigen::Matrix<Scalar, 3, 1> unit_a = a / length_a;
-  const Eigen::Matrix<Scalar, 3, 1> unit_b = b / length_b;
-  const Scalar sine = unit_a.cross(unit_b).norm();
-  const Scalar cosine = unit_a.dot(unit_b);
-  const Scalar theta = std::atan2(sine, cosine);
-  Scalar theta_over_sine = Scalar(1) + theta * theta / Scalar(6);
-  if (theta > Scalar(1e-4)) {
-    constexpr Scalar kMaxFactor = Scalar(1e4);
-    theta_over_sine = sine > theta / kMaxFactor ? theta / sine : kMaxFactor;
-  }
-  const Scalar scale = -stiffness * theta_over_sine;
-  gradient_a = scale * (unit_b - cosine * unit_a) / length_a;
-  gradient_b = scale * (unit_a - cosine * unit_b) / length_b;
+  bending_gradient_of_units<Scalar>(Eigen::Matrix<Scalar, 3, 1>(a / length_a), length_a,
+                                    Eigen::Matrix<Scalar, 3, 1>(b / length_b), length_b, stiffness,
+                                    gradient_a, gradient_b);
 }
 
 // Stiffness of the hinge at interior particle i. A held segment (both its particles held, as
@@ -264,7 +309,8 @@ class Catheter {
   // for the contact spring alone).
   float max_contact_stiffness_n_per_m() const noexcept;
 
-  // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps of eq. 28.
+  // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps (linearly
+  // implicit axial springs and damping, explicit bending and contacts).
   // Refuses (state unchanged) a non-positive/non-finite period or one needing more substeps
   // than the budget (invalid_argument). If any position or velocity becomes non-finite, or a
   // segment ends shorter than kMinSegmentRatio of its rest length (crushed: a compression of
@@ -274,12 +320,12 @@ class Catheter {
 
   // A segment compressed below this fraction of l0 ends step() with numeric_error. Measured
   // (tests/model/runtime/stability_catheter_test.cpp, docs/stability.md): a clamped polymer
-  // catheter (EA 157 N) under a dead compressive tip load up to 0.1 EA folds over and settles,
-  // its shortest segment at 0.32 l0; from ~0.2 EA the fold crushes segments and the explicit
-  // chain pumps energy (kinetic energy to 2e3 J, segments stretched 23-fold, never
-  // non-finite). Refusing at 0.1 l0 stops that (peak kinetic energy within 1.4× the load's
-  // work); 0.25 l0 would hold it within the work but also refuses the violent, stable recoil
-  // of a 20 EA pull. Reaching it statically takes a compression of 0.9 EA.
+  // catheter (EA 157 N) under a dead compressive tip load up to 0.5 EA folds over and settles;
+  // at 1 and 2 EA the load crushes a segment and the step is refused (peak kinetic energy
+  // within 1.5× the load's work). With the explicit axial springs the fold crushed segments from
+  // ~0.2 EA and the chain pumped energy (kinetic energy to 2e3 J, segments stretched 23-fold,
+  // never non-finite); refusing at 0.1 l0 stopped that. Reaching it statically takes a
+  // compression of 0.9 EA.
   static constexpr float kMinSegmentRatio = 0.1F;
 
   void reset() noexcept;  // rest shape, zero velocity, forces and holds cleared, clamp off
@@ -318,6 +364,13 @@ class Catheter {
   // false if the state became non-finite. `fraction` is this substep's share of the step
   // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
   bool substep(float dt_s, float fraction, float hold_step) noexcept;
+  // The substep's explicit forces into forces_: external, axial at the current positions,
+  // bending, contact planes; and the segments' unit vectors and lengths (segment_units_).
+  void explicit_forces(float fraction) noexcept;
+  // The linearly implicit velocity update: assembles (m + h b) I + h² H_axial (block
+  // tridiagonal, 3×3 blocks, held particles eliminated) and solves it for the new velocities
+  // into solution_ (docs/catheter.md, "Integration and stable step").
+  void solve_velocities(float dt_s, float period_fraction) noexcept;
   // Back to the state at the start of step(), with no hold or contact forces reported.
   void restore_saved_state() noexcept;
   bool crushed() const noexcept;  // some segment shorter than kMinSegmentRatio · l0
@@ -342,6 +395,23 @@ class Catheter {
   std::span<Vec3> saved_positions_;  // last good state (start of step())
   std::span<Vec3> saved_velocities_;
   std::span<Vec3> hold_forces_n_;    // mean over the last step, per particle
+  // Scratch of the implicit solve (double: the axial blocks h² k_s reach 1e6 m at the stiffest
+  // accepted EA, and float would lose the transverse directions to rounding).
+  std::span<Eigen::Matrix3d> block_inverse_;  // N: inverse of the eliminated diagonal blocks
+  // h² H_s of segment s = isotropic·I + along·û ûᵀ (the off-diagonal block is −that); kept in
+  // this form, the elimination needs matrix-vector products only.
+  struct SegmentCoupling {
+    Eigen::Vector3d unit = Eigen::Vector3d::Zero();
+    double isotropic = 0.0;
+    double along = 0.0;
+    Eigen::Vector3d times(const Eigen::Vector3d& v) const noexcept {
+      return isotropic * v + (along * unit.dot(v)) * unit;
+    }
+  };
+  std::span<SegmentCoupling> coupling_;       // N − 1
+  std::span<Eigen::Vector3d> solution_;       // N: right-hand side, then the new velocities
+  std::span<Vec3> segment_units_;             // N − 1: unit segment vectors of the substep
+  std::span<float> segment_lengths_;          // N − 1
   std::span<ContactPlane> planes_;   // max_contact_planes
   std::span<Vec3> plane_forces_n_;   // mean over the last step, per plane
   std::size_t plane_count_ = 0;

@@ -25,6 +25,10 @@ struct CatheterParams {
   float linear_density_kg_per_m = 0.0F;  // ρ_l
   float damping_n_s_per_m = 0.0F;        // b per particle, ≥ 0
   std::uint32_t particle_count = 0;      // N, 3..kMaxCatheterParticles
+  // The stiffest contact spring (N/m, ≥ 0) the substep must keep stable: a definition's
+  // max(wall, tool) stiffness (modelc, catheter_model_data()); 0 = the chain alone. Contacts are
+  // integrated explicitly, so they enter the stable substep (catheter_stable_substep_s).
+  float contact_stiffness_n_per_m = 0.0F;
 };
 
 // Most particles a chain may have (Catheter::kMaxParticles).
@@ -44,11 +48,13 @@ struct CatheterChain {
   float stable_substep_s = 0.0F;     // catheter_stable_substep_s() of the double constants
 };
 
-// The largest stable substep of semi-implicit Euler for these constants (docs/catheter.md,
-// "Integration and stable step"): 0.5 · 2/ω_max with ω_max² = 4 k_s/m + 20 k_b/(m l0²), and at
-// most m/b when b > 0 (explicit damping). Positive finite arguments (b ≥ 0).
-double catheter_stable_substep_s(double mass_kg, double axial_n_per_m, double bending_n_m_per_rad,
-                                 double rest_length_m, double damping_n_s_per_m) noexcept;
+// The largest stable substep of the catheter's integrator for these constants (docs/catheter.md,
+// "Integration and stable step"). The axial springs and the damping are integrated linearly
+// implicitly (no step limit); what stays explicit is the bending and the contact springs:
+// 0.5 · 2/ω_max with ω_max² = 20 k_b/(m l0²) + k_contact/m. Positive finite arguments
+// (k_contact ≥ 0).
+double catheter_stable_substep_s(double mass_kg, double bending_n_m_per_rad, double rest_length_m,
+                                 double contact_stiffness_n_per_m) noexcept;
 
 // Validates `params` (each refusal names the parameter: "catheter: particle_count = 2:
 // expected 3..256") and derives the chain: the constants in double, each rounded once to float.
@@ -76,9 +82,18 @@ void place_catheter_rest(const Eigen::Vector3f& start_m, const Eigen::Vector3f& 
                          float rest_length_m, std::span<Eigen::Vector3f> positions_m) noexcept;
 
 // The stiffest contact the substep keeps stable alongside the chain: m / Δt_sub² (ω Δt ≤ 1 for
-// the contact spring alone).
+// the contact spring alone; at least the k_contact the substep was derived with).
 inline float contact_stiffness_limit_n_per_m(float particle_mass_kg, float substep_s) noexcept {
   return particle_mass_kg / (substep_s * substep_s);
+}
+
+// The contact stiffness a definition's substep keeps stable: its stiffer contact (wall or tool,
+// CatheterParams::contact_stiffness_n_per_m). The grasp squeeze is not a spring on the chain
+// (the jaws hold the grasped particles), so it does not enter.
+inline float catheter_contact_stiffness(float wall_stiffness_n_per_m,
+                                        float tool_stiffness_n_per_m) noexcept {
+  return wall_stiffness_n_per_m > tool_stiffness_n_per_m ? wall_stiffness_n_per_m
+                                                         : tool_stiffness_n_per_m;
 }
 
 // A catheter definition's [contact] as the trainer applies it (float; docs/config.md).

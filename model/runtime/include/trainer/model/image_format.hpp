@@ -155,8 +155,10 @@ static_assert(offsetof(ImageMetadataV1, reserved) == 136);
 // the constants modelc derived (model::derive_catheter_chain, docs/catheter.md). The record has
 // its own version, checked before anything else in it: a change to this record is a new
 // record_version (the container's format_version stays), and a loader refuses every version
-// but its own. Reserved bytes must be zero.
-inline constexpr std::uint32_t kCatheterRecordVersion = 1;
+// but its own. Reserved bytes must be zero. Version 2 (same layout): stable_substep_s is the
+// step of the linearly implicit integrator (explicit bending and contacts only), derived with
+// max(wall, tool) stiffness; a version-1 image's substep was the explicit axial springs'.
+inline constexpr std::uint32_t kCatheterRecordVersion = 2;
 struct CatheterParametersV1 {
   std::uint32_t record_version;  // kCatheterRecordVersion
   std::uint32_t particle_count;  // N, 3..Catheter::kMaxParticles
