@@ -177,21 +177,13 @@ core::Status BucketGrid::rebuild(std::span<const float> positions_m,
   return core::Status::ok();
 }
 
-namespace {
-// Closed boxes: touching counts (a triangle on the query box's face is within reach exactly).
-bool grid_boxes_overlap(const Aabb& x, const Aabb& y) noexcept {
-  return x.min_m.x() <= y.max_m.x() && y.min_m.x() <= x.max_m.x() && x.min_m.y() <= y.max_m.y() &&
-         y.min_m.y() <= x.max_m.y() && x.min_m.z() <= y.max_m.z() && y.min_m.z() <= x.max_m.z();
-}
-}  // namespace
-
 bool BucketGrid::collect_bucket(std::uint32_t bucket, const Aabb& box, std::span<std::uint32_t> out_ids,
                                 std::size_t& out_count) noexcept {
   for (std::uint32_t e = bucket_start_[bucket]; e < bucket_start_[bucket + 1]; ++e) {
     const std::uint32_t id = entries_[e];
     if (stamps_[id] == stamp_) continue;
     stamps_[id] = stamp_;  // tested once per query, whatever the answer
-    if (!grid_boxes_overlap(triangle_boxes_[id], box)) {
+    if (!triangle_boxes_[id].overlaps(box)) {
       ++rejected_count_;
       continue;
     }
@@ -209,7 +201,7 @@ core::Status BucketGrid::query(const Aabb& box, std::span<std::uint32_t> out_ids
       (box.min_m.array() > box.max_m.array()).any()) {
     return {core::StatusCode::invalid_argument, "bucket grid: query box non-finite or inverted"};
   }
-  if (triangle_count_ == 0 || !grid_boxes_overlap(bounds_, box)) return core::Status::ok();
+  if (triangle_count_ == 0 || !bounds_.overlaps(box)) return core::Status::ok();
   if (++stamp_ == 0) {  // wrapped: forget every stamp
     std::fill(stamps_.begin(), stamps_.end(), 0U);
     stamp_ = 1;

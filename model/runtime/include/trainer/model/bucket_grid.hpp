@@ -46,23 +46,9 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/core/status.hpp"
+#include "trainer/model/broad_phase.hpp"
 
 namespace trainer::model {
-
-using Vec3 = Eigen::Vector3f;
-
-struct Aabb {
-  Vec3 min_m = Vec3::Zero();
-  Vec3 max_m = Vec3::Zero();
-
-  static Aabb around_point(const Vec3& centre, float half_size_m) noexcept {
-    return {(centre.array() - half_size_m).matrix(), (centre.array() + half_size_m).matrix()};
-  }
-  static Aabb around_segment(const Vec3& p0, const Vec3& p1, float margin_m) noexcept {
-    return {(p0.cwiseMin(p1).array() - margin_m).matrix(),
-            (p0.cwiseMax(p1).array() + margin_m).matrix()};
-  }
-};
 
 struct BucketGridSettings {
   std::uint32_t max_triangles = 0;
@@ -72,7 +58,7 @@ struct BucketGridSettings {
   std::uint32_t max_entries = 0;     // (triangle, cell) pairs over the whole mesh
 };
 
-class BucketGrid {
+class BucketGrid final : public TriangleBroadPhase {
  public:
   // Cell coordinates are clamped to ±kMaxCellIndex so a far-away (or huge) coordinate cannot
   // overflow; the clamp is applied to stored triangles and query boxes alike, so the result
@@ -100,7 +86,7 @@ class BucketGrid {
   // out_ids.size() found are written); invalid_argument for a non-finite or inverted box.
   // A box covering more cells than there are buckets scans every bucket instead.
   core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids,
-                     std::size_t& out_count) noexcept;
+                     std::size_t& out_count) noexcept override;
 
   void clear() noexcept;
 

@@ -142,7 +142,7 @@ class SegmentSurfaceContact {
   //   capacity_exceeded a grid query returned more than max_candidates triangles: that segment
   //                     uses the first max_candidates (candidate_overflow_count() counts it).
   core::Status update(std::span<const ToolCapsule> capsules, const TriangleMeshView& mesh,
-                      std::span<const float> surface_velocities_m_per_s, BucketGrid& grid) noexcept;
+                      std::span<const float> surface_velocities_m_per_s, TriangleBroadPhase& grid) noexcept;
 
   // Forgets every contact and side memory (a tool withdrawn, a scene reset).
   void reset() noexcept;
@@ -178,7 +178,7 @@ class SegmentSurfaceContact {
   static bool better(const Candidate& candidate, const Candidate& current, float tie_m) noexcept;
   void clear_outputs() noexcept;
   core::Status segment_contact(const ToolCapsule& capsule, const TriangleMeshView& mesh,
-                               std::span<const float> surface_velocities, BucketGrid& grid) noexcept;
+                               std::span<const float> surface_velocities, TriangleBroadPhase& grid) noexcept;
   // Outward angle-weighted pseudo-normal at the closest feature of candidates_[best] (unit).
   Vec3 pseudo_normal(std::size_t best, std::size_t candidate_count, const TriangleMeshView& mesh) const noexcept;
   void add_node_force(std::uint32_t node, const Vec3& force_n) noexcept;
