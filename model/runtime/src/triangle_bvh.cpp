@@ -175,20 +175,15 @@ core::Status TriangleBvh::refit(std::span<const float> positions_m, float slack_
     ready_ = false;
     return {core::StatusCode::invalid_argument, "triangle bvh: slack negative or non-finite"};
   }
-  // Largest coordinate change since the last refit; NaN propagates as "moved" (the comparison
-  // below fails), and the finiteness check then refuses it.
-  float largest = 0.0F;
-  bool finite = true;
-  for (std::size_t i = 0; i < positions_m.size(); ++i) {
-    const float change = std::abs(positions_m[i] - reference_[i]);
-    largest = std::max(largest, change);
-    finite = finite && std::isfinite(positions_m[i]);
-  }
-  if (!finite) {
+  // Largest coordinate change since the last refit (Eigen's packet reductions: the pass is
+  // vectorized, ~4 coordinates per instruction on SSE2).
+  const Eigen::Map<const Eigen::ArrayXf> now(positions_m.data(), static_cast<Eigen::Index>(positions_m.size()));
+  const Eigen::Map<const Eigen::ArrayXf> before(reference_.data(), static_cast<Eigen::Index>(reference_.size()));
+  if (!now.allFinite()) {
     ready_ = false;
     return {core::StatusCode::numeric_error, "triangle bvh: non-finite vertex"};
   }
-  if (ready_ && slack_m == slack_m_ && largest <= slack_m) return core::Status::ok();
+  if (ready_ && slack_m == slack_m_ && (now - before).abs().maxCoeff() <= slack_m) return core::Status::ok();
   std::copy(positions_m.begin(), positions_m.end(), reference_.begin());
   slack_m_ = slack_m;
   refit_boxes();
