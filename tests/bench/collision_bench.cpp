@@ -470,7 +470,7 @@ void BM_SegmentContact(benchmark::State& state) {
   for (std::int64_t pose = 0; pose < 126; ++pose) {
     for (const model::ToolCapsule& capsule : pressing_capsules(pose)) {
       std::size_t count = 0;
-      (void)broad.query(model::Aabb::around_segment(capsule.start_m, capsule.end_m, capsule.radius_m + 1e-4F), ids, count);
+      (void)broad.query_segment(capsule.start_m, capsule.end_m, capsule.radius_m + 1e-4F, ids, count);
       candidates += static_cast<double>(count);
     }
   }

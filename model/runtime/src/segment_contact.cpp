@@ -215,7 +215,7 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
   }
   std::size_t id_count = 0;
   core::Status status =
-      grid.query(Aabb::around_segment(capsule.start_m, capsule.end_m, reach_m), candidate_ids_, id_count);
+      grid.query_segment(capsule.start_m, capsule.end_m, reach_m, candidate_ids_, id_count);
   if (status.code() == core::StatusCode::capacity_exceeded) {
     ++candidate_overflow_count_;  // the ids returned are still used: a crowded region keeps its contact
   } else if (!status.is_ok()) {

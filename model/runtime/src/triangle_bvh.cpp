@@ -192,12 +192,10 @@ core::Status TriangleBvh::refit(std::span<const float> positions_m, float slack_
   return core::Status::ok();
 }
 
-core::Status TriangleBvh::query(const Aabb& box, std::span<std::uint32_t> out_ids,
-                                std::size_t& out_count) noexcept {
+template <class Accept>
+core::Status TriangleBvh::collect(Accept&& accept, std::span<std::uint32_t> out_ids,
+                                  std::size_t& out_count) noexcept {
   out_count = 0;
-  if (!box.min_m.allFinite() || !box.max_m.allFinite() || (box.min_m.array() > box.max_m.array()).any()) {
-    return {core::StatusCode::invalid_argument, "triangle bvh: query box non-finite or inverted"};
-  }
   if (!ready_) return core::Status::ok();
   std::uint32_t stack[kMaxDepth + 1];
   std::size_t stack_size = 0;
@@ -205,12 +203,13 @@ core::Status TriangleBvh::query(const Aabb& box, std::span<std::uint32_t> out_id
   std::size_t low_word = hit_bits_.size();
   std::size_t high_word = 0;
   while (stack_size > 0) {
-    const Node& node = nodes_[stack[--stack_size]];
-    if (!node.box.overlaps(box)) continue;
+    const std::uint32_t index = stack[--stack_size];
+    const Node& node = nodes_[index];
+    if (!accept(node.box)) continue;
     if (node.count > 0) {
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
         const std::uint32_t id = order_[i];
-        if (!triangle_boxes_[id].overlaps(box)) continue;
+        if (!accept(triangle_boxes_[id])) continue;
         const std::size_t word = id >> 6U;
         hit_bits_[word] |= std::uint64_t{1} << (id & 63U);
         low_word = std::min(low_word, word);
@@ -219,7 +218,7 @@ core::Status TriangleBvh::query(const Aabb& box, std::span<std::uint32_t> out_id
     } else {
       // Depth-first, left first; the stack never holds more than one node per level.
       stack[stack_size++] = node.first;
-      stack[stack_size++] = static_cast<std::uint32_t>(&node - nodes_.data()) + 1;
+      stack[stack_size++] = index + 1;
     }
   }
   bool truncated = false;
@@ -238,6 +237,59 @@ core::Status TriangleBvh::query(const Aabb& box, std::span<std::uint32_t> out_id
   }
   if (truncated) return {core::StatusCode::capacity_exceeded, "triangle bvh: query output full"};
   return core::Status::ok();
+}
+
+core::Status TriangleBvh::query(const Aabb& box, std::span<std::uint32_t> out_ids,
+                                std::size_t& out_count) noexcept {
+  out_count = 0;
+  if (!box.min_m.allFinite() || !box.max_m.allFinite() || (box.min_m.array() > box.max_m.array()).any()) {
+    return {core::StatusCode::invalid_argument, "triangle bvh: query box non-finite or inverted"};
+  }
+  return collect([&box](const Aabb& stored) { return stored.overlaps(box); }, out_ids, out_count);
+}
+
+namespace {
+
+// Does the segment p0 + t·d, t in [0, 1], pass through `box` grown by `margin` on every side?
+// Slab clipping; t intervals that miss by less than kSlabTolerance count as a hit (rounding).
+constexpr float kSlabTolerance = 1e-6F;
+bool segment_meets_grown_box(const Vec3& p0, const Vec3& d, const Aabb& box, float margin) noexcept {
+  float t_low = 0.0F;
+  float t_high = 1.0F;
+  for (int axis = 0; axis < 3; ++axis) {
+    const float low = box.min_m[axis] - margin;
+    const float high = box.max_m[axis] + margin;
+    if (d[axis] == 0.0F) {
+      if (p0[axis] < low || p0[axis] > high) return false;
+      continue;
+    }
+    const float inverse = 1.0F / d[axis];
+    float t1 = (low - p0[axis]) * inverse;
+    float t2 = (high - p0[axis]) * inverse;
+    if (t1 > t2) std::swap(t1, t2);
+    t_low = std::max(t_low, t1);
+    t_high = std::min(t_high, t2);
+    if (t_low > t_high + kSlabTolerance) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+core::Status TriangleBvh::query_segment(const Vec3& p0, const Vec3& p1, float margin_m,
+                                        std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
+  out_count = 0;
+  if (!p0.allFinite() || !p1.allFinite() || !(margin_m >= 0.0F) || !std::isfinite(margin_m)) {
+    return {core::StatusCode::invalid_argument, "triangle bvh: segment non-finite or margin negative"};
+  }
+  // The margin grown a little so that rounding in the clipping never drops a triangle at
+  // exactly margin_m; the segment's own box first (cheap, and exact for a degenerate segment).
+  const float margin = margin_m * (1.0F + 1e-5F) + 1e-9F;
+  const Aabb around = Aabb::around_segment(p0, p1, margin);
+  const Vec3 d = p1 - p0;
+  return collect(
+      [&](const Aabb& stored) { return stored.overlaps(around) && segment_meets_grown_box(p0, d, stored, margin); },
+      out_ids, out_count);
 }
 
 }  // namespace trainer::model

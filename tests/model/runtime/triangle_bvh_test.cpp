@@ -17,6 +17,7 @@
 
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
+#include "trainer/model/geometry.hpp"
 #include "trainer/model/particle_contact.hpp"
 #include "trainer/model/segment_contact.hpp"
 
@@ -127,6 +128,58 @@ TEST(TriangleBvh, QueriesEqualBruteForceInIdOrder) {
       }
     }
   }
+}
+
+// query_segment: every triangle closer than the margin to the segment is returned (brute force
+// with the exact segment–triangle distance), and nothing outside query()'s box answer; long
+// diagonal segments (a shaft across the tube) get far fewer candidates than their box holds.
+TEST(TriangleBvh, SegmentQueryKeepsEveryTriangleWithinTheMargin) {
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<float> u(0.0F, 1.0F);
+  core::Arena arena = bvh_arena();
+  BvhMesh mesh = bvh_tube(21, 16);
+  auto created = TriangleBvh::create(mesh.rest, mesh.triangles, arena);
+  ASSERT_TRUE(created.has_value());
+  TriangleBvh bvh = std::move(created).value();
+  std::vector<std::uint32_t> out(640);
+  std::vector<std::uint32_t> boxed(640);
+  std::size_t within = 0;
+  std::size_t segment_total = 0;
+  std::size_t box_total = 0;
+  for (int cycle = 0; cycle < 10; ++cycle) {
+    bvh_deform(mesh, rng, cycle % 2 == 1);
+    ASSERT_TRUE(bvh.refit(mesh.positions, cycle % 3 == 0 ? 0.0F : 0.0004F).is_ok());
+    for (int query = 0; query < 300; ++query) {
+      const Vec3 p0(0.02F * (u(rng) - 0.5F), 0.02F * (u(rng) - 0.5F), 0.05F * u(rng) - 0.005F);
+      Vec3 p1(0.02F * (u(rng) - 0.5F), 0.02F * (u(rng) - 0.5F), 0.05F * u(rng) - 0.005F);
+      if (query % 10 == 0) p1 = p0;                                  // a point
+      if (query % 10 == 1) p1 = Vec3(p0.x(), p0.y(), p0.z() + 0.01F);  // axis-parallel
+      const float margin = 0.003F * u(rng);
+      std::size_t count = 0;
+      std::size_t box_count = 0;
+      ASSERT_TRUE(bvh.query_segment(p0, p1, margin, out, count).is_ok());
+      ASSERT_TRUE(bvh.query(Aabb::around_segment(p0, p1, margin * (1.0F + 1e-5F) + 1e-9F), boxed, box_count).is_ok());
+      const auto begin = out.begin();
+      const auto end = out.begin() + static_cast<std::ptrdiff_t>(count);
+      ASSERT_TRUE(std::is_sorted(begin, end));
+      ASSERT_TRUE(std::includes(boxed.begin(), boxed.begin() + static_cast<std::ptrdiff_t>(box_count), begin, end));
+      for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+        const Vec3 a = mesh.vertex(mesh.triangles[3 * t]);
+        const Vec3 b = mesh.vertex(mesh.triangles[3 * t + 1]);
+        const Vec3 c = mesh.vertex(mesh.triangles[3 * t + 2]);
+        if (!(closest_points_segment_triangle(p0, p1, a, b, c).distance_m < margin)) continue;
+        ++within;
+        ASSERT_TRUE(std::binary_search(begin, end, t)) << "missed triangle " << t << " query " << query;
+      }
+      segment_total += count;
+      box_total += box_count;
+    }
+  }
+  EXPECT_GT(within, 1000U);
+  EXPECT_LT(2 * segment_total, box_total) << "the slab test should cut the box's candidates at least in half";
+  std::size_t count = 0;
+  EXPECT_EQ(bvh.query_segment(Vec3::Zero(), Vec3(NAN, 0, 0), 0.001F, out, count).code(), core::StatusCode::invalid_argument);
+  EXPECT_EQ(bvh.query_segment(Vec3::Zero(), Vec3::Zero(), -1.0F, out, count).code(), core::StatusCode::invalid_argument);
 }
 
 // Built and refitted with a slack at rest, the hierarchy still returns every triangle whose

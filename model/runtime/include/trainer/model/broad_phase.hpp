@@ -11,6 +11,7 @@
 // owns a broad phase (query() may stamp scratch state).
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -46,6 +47,21 @@ class TriangleBroadPhase {
  public:
   virtual core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids,
                              std::size_t& out_count) noexcept = 0;
+
+  // The triangles that may lie within margin_m of the segment p0–p1: the same contract as
+  // query() for every triangle closer than margin_m to the segment (each returned once; a
+  // superset allowed). This default asks query() for the segment's box grown by margin_m; a
+  // broad phase may test its boxes against the segment itself (TriangleBvh: a long diagonal
+  // shaft's box holds far more triangles than the thin cylinder around it).
+  // invalid_argument: a non-finite point or a negative or non-finite margin.
+  virtual core::Status query_segment(const Vec3& p0, const Vec3& p1, float margin_m,
+                                     std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
+    if (!(margin_m >= 0.0F) || !std::isfinite(margin_m)) {
+      out_count = 0;
+      return {core::StatusCode::invalid_argument, "broad phase: segment margin negative or non-finite"};
+    }
+    return query(Aabb::around_segment(p0, p1, margin_m), out_ids, out_count);
+  }
 
  protected:
   TriangleBroadPhase() = default;

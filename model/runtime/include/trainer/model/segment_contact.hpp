@@ -28,8 +28,8 @@
 // still pushed back (never the other way), with a force that peaks at k·reach on the
 // mid-surface and falls to zero at reach behind it, where the contact ends and the memory is
 // dropped (the wall has been pushed through; no force jump). Contact, and the memory, end
-// when no non-degenerate triangle is within reach (the grid query box is the segment's box
-// grown by reach, so every triangle within reach is a candidate), when the segment is not
+// when no non-degenerate triangle is within reach (the broad phase's query_segment() with a
+// margin of reach returns every triangle within reach as a candidate), when the segment is not
 // passed to an update, or at reset().
 //
 // Force on the tool: f = k·depth − b·((v_q − v_p)·n), clipped at 0 (the damper never pulls)

@@ -64,6 +64,13 @@ class TriangleBvh final : public TriangleBroadPhase {
   core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids,
                      std::size_t& out_count) noexcept override;
 
+  // Triangles whose stored box, grown by margin_m (and a relative 1e-5 for rounding), the
+  // segment p0–p1 passes through (slab test per node and per triangle), increasing, each once:
+  // every triangle closer than margin_m to the segment is among them (a point of the segment
+  // within margin_m of a point of the triangle lies in the grown box). Same statuses as query().
+  core::Status query_segment(const Vec3& p0, const Vec3& p1, float margin_m, std::span<std::uint32_t> out_ids,
+                             std::size_t& out_count) noexcept override;
+
   std::size_t triangle_count() const noexcept { return triangle_boxes_.size(); }
   std::size_t vertex_count() const noexcept { return reference_.size() / 3; }
   std::size_t node_count() const noexcept { return nodes_.size(); }
@@ -84,6 +91,10 @@ class TriangleBvh final : public TriangleBroadPhase {
 
   TriangleBvh() = default;
   void refit_boxes() noexcept;
+  // The traversal of query() and query_segment(): `accept(box)` says whether a node or
+  // triangle box may hold an answer.
+  template <class Accept>
+  core::Status collect(Accept&& accept, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
 
   std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
   std::span<Node> nodes_;
