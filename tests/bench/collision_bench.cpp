@@ -11,6 +11,18 @@
 //                                     pressed 0.5 mm into the wall (grid rebuilt outside)
 //   BM_ParticleContact/<triangles>/<particles> ParticleSurfaceContact::compute for a catheter
 //                                     lying along the wall inside the tube (grid rebuilt outside)
+// Issue 19, the hash (with its exact stored-box filter) against the refitted hierarchy
+// (model::TriangleBvh), on the duct-sized tube; <kind> 0 = BucketGrid, 1 = TriangleBvh:
+//   BM_BroadRefit/<kind>               the upkeep when the wall has moved (0.5 mm between
+//                                      shapes): the grid's rebuild, the hierarchy's refit;
+//                                      /2: the hierarchy's per-cycle check when nothing moved
+//                                      beyond the slack
+//   BM_BroadQuery/<kind>/<spheres>     like BM_Query (candidates = after the exact filter)
+//   BM_SegmentContact/<kind>           SegmentSurfaceContact::update, shaft (r 2.5 mm) and two
+//                                      jaws (r 1 mm) pressed 0.5 mm into the tube from outside,
+//                                      sliding round it (the cbd's shaft/jaw vs duct sub-stage)
+//   BM_FarParticles/<kind>             21 particles all 10-30 mm outside the tube (most of the
+//                                      cbd's catheter, most of the time)
 // Counter `allocs` is the heap allocations per iteration in the timed calls (must be 0).
 #include <benchmark/benchmark.h>
 
@@ -28,6 +40,8 @@
 #include "trainer/model/geometry.hpp"
 #include "trainer/model/particle_contact.hpp"
 #include "trainer/model/proxy.hpp"
+#include "trainer/model/segment_contact.hpp"
+#include "trainer/model/triangle_bvh.hpp"
 
 namespace {
 
@@ -328,6 +342,177 @@ void BM_ParticleContact(benchmark::State& state) {
   state.counters["allocs"] = static_cast<double>(core::alloc::counted_allocations() - before);
   state.counters["contacts"] = step > 0 ? contacts / static_cast<double>(step) : 0.0;
 }
+
+// ---- issue 19: hash vs hierarchy on the duct-sized tube ----
+
+struct BothBroadphases {
+  Broadphase hash;
+  model::TriangleBvh bvh;
+  model::TriangleBroadPhase& pick(std::int64_t kind) {
+    if (kind == 0) return hash.grid;
+    return bvh;
+  }
+  void fit(std::int64_t kind, const std::vector<float>& positions, const std::vector<std::uint32_t>& triangles) {
+    const bool ok = kind == 0 ? hash.grid.rebuild(positions, triangles).is_ok() : bvh.refit(positions).is_ok();
+    if (!ok) std::abort();
+  }
+};
+
+BothBroadphases make_both(const Tube& tube) {
+  Broadphase hash = make_broadphase(tube, tube.mean_edge_m);
+  auto bvh = model::TriangleBvh::create(tube.rest, tube.triangles, hash.arena);
+  if (!bvh) std::abort();
+  return {std::move(hash), std::move(bvh).value()};
+}
+
+void BM_BroadRefit(benchmark::State& state) {
+  const Tube tube = make_tube(kSizes[0]);
+  BothBroadphases both = make_both(tube);
+  const std::int64_t kind = state.range(0);
+  std::size_t cycle = 0;
+  const std::uint64_t before = core::alloc::counted_allocations();
+  core::alloc::begin_counting_this_thread();
+  for (auto _ : state) {
+    if (kind == 2) {  // the hierarchy's check alone: nothing moved beyond the slack
+      if (!both.bvh.refit(tube.shapes[3], 0.001F).is_ok()) std::abort();
+    } else {
+      both.fit(kind, tube.shapes[cycle++ % 8], tube.triangles);
+    }
+  }
+  core::alloc::end_counting_this_thread();
+  state.counters["allocs"] = static_cast<double>(core::alloc::counted_allocations() - before);
+}
+
+void BM_BroadQuery(benchmark::State& state) {
+  const Tube tube = make_tube(kSizes[0]);
+  BothBroadphases both = make_both(tube);
+  const std::int64_t kind = state.range(0);
+  const auto spheres = static_cast<std::size_t>(state.range(1));
+  const std::vector<float>& positions = tube.shapes[3];
+  both.fit(kind, positions, tube.triangles);
+  model::TriangleBroadPhase& broad = both.pick(kind);
+  std::vector<std::uint32_t> candidates(tube.triangles.size() / 3);
+  std::int64_t step = 0;
+  double candidate_total = 0.0;
+  double contact_total = 0.0;
+  for (auto _ : state) {
+    for (std::size_t s = 0; s < spheres; ++s) {
+      const Vec3 centre = sphere_centre(s, spheres, step);
+      std::size_t count = 0;
+      if (!broad.query(model::Aabb::around_point(centre, kSphereRadiusM), candidates, count).is_ok()) std::abort();
+      candidate_total += static_cast<double>(count);
+      for (std::size_t k = 0; k < count; ++k) {
+        if (contact_with(tube, positions, candidates[k], centre)) contact_total += 1.0;
+      }
+    }
+    ++step;
+  }
+  const double queries = static_cast<double>(step) * static_cast<double>(spheres);
+  state.counters["candidates"] = queries > 0 ? candidate_total / queries : 0.0;
+  state.counters["contacts"] = queries > 0 ? contact_total / queries : 0.0;
+}
+
+// The shaft (from outside, axis tangent-ish to the tube) and the two jaws, pressed 0.5 mm into
+// the wall (reach = radius + 0.1 mm half thickness), circling the tube 0.2 mm per cycle.
+std::array<model::ToolCapsule, 3> pressing_capsules(std::int64_t step) {
+  const float angle = 0.05F * static_cast<float>(step % 126);
+  const Vec3 radial(std::cos(angle), std::sin(angle), 0.0F);
+  const Vec3 tangent(-std::sin(angle), std::cos(angle), 0.0F);
+  const Vec3 hinge = (kTubeRadiusM + 0.0011F) * radial + Vec3(0, 0, 0.02F);
+  std::array<model::ToolCapsule, 3> capsules{};
+  capsules[0].segment = model::ToolSegment::shaft;
+  capsules[0].start_m = hinge + 0.03F * (radial + Vec3(0, 0, 1.0F)).normalized() + 0.0025F * radial;
+  capsules[0].end_m = hinge + 0.0025F * radial;
+  capsules[0].radius_m = 0.0025F;
+  for (int jaw = 1; jaw <= 2; ++jaw) {
+    capsules[static_cast<std::size_t>(jaw)].segment = jaw == 1 ? model::ToolSegment::jaw0 : model::ToolSegment::jaw1;
+    capsules[static_cast<std::size_t>(jaw)].start_m = hinge;
+    capsules[static_cast<std::size_t>(jaw)].end_m =
+        hinge + 0.008F * Vec3(0, 0, -1.0F) + (jaw == 1 ? 0.001F : -0.001F) * tangent;
+    capsules[static_cast<std::size_t>(jaw)].radius_m = 0.001F;
+  }
+  return capsules;
+}
+
+void BM_SegmentContact(benchmark::State& state) {
+  const Tube tube = make_tube(kSizes[0]);
+  BothBroadphases both = make_both(tube);
+  const std::int64_t kind = state.range(0);
+  const std::vector<float>& positions = tube.shapes[3];
+  both.fit(kind, positions, tube.triangles);
+  model::TriangleBroadPhase& broad = both.pick(kind);
+  model::SegmentContactSettings settings;
+  settings.surface_half_thickness_m = 1e-4F;
+  settings.stiffness_n_per_m = 500.0F;
+  settings.damping_n_s_per_m = 0.5F;
+  settings.max_force_n = 5.0F;
+  settings.max_candidates = 640;
+  auto contact = model::SegmentSurfaceContact::create(settings, both.hash.arena);
+  if (!contact) std::abort();
+  const model::TriangleMeshView mesh{positions, tube.triangles};
+  std::int64_t step = 0;
+  double contacts = 0.0;
+  const std::uint64_t before = core::alloc::counted_allocations();
+  core::alloc::begin_counting_this_thread();
+  for (auto _ : state) {
+    const auto capsules = pressing_capsules(step);
+    if (!contact->update(capsules, mesh, {}, broad).is_ok()) {
+      state.SkipWithError("segment contact");
+      break;
+    }
+    contacts += static_cast<double>(contact->contact_count());
+    ++step;
+  }
+  core::alloc::end_counting_this_thread();
+  // Candidates per capsule query, counted apart over the same 126 poses.
+  std::vector<std::uint32_t> ids(640);
+  double candidates = 0.0;
+  for (std::int64_t pose = 0; pose < 126; ++pose) {
+    for (const model::ToolCapsule& capsule : pressing_capsules(pose)) {
+      std::size_t count = 0;
+      (void)broad.query_segment(capsule.start_m, capsule.end_m, capsule.radius_m + 1e-4F, ids, count);
+      candidates += static_cast<double>(count);
+    }
+  }
+  state.counters["allocs"] = static_cast<double>(core::alloc::counted_allocations() - before);
+  state.counters["contacts"] = step > 0 ? contacts / static_cast<double>(step) : 0.0;
+  state.counters["candidates"] = candidates / (3.0 * 126.0);
+}
+
+void BM_FarParticles(benchmark::State& state) {
+  const Tube tube = make_tube(kSizes[0]);
+  BothBroadphases both = make_both(tube);
+  const std::int64_t kind = state.range(0);
+  const std::vector<float>& positions = tube.shapes[3];
+  both.fit(kind, positions, tube.triangles);
+  model::TriangleBroadPhase& broad = both.pick(kind);
+  model::ParticleContactSettings settings;
+  settings.max_particles = 21;
+  settings.max_contacts = 84;
+  settings.max_nodes = static_cast<std::uint32_t>(tube.rest.size() / 3);
+  settings.stiffness_n_per_m = 200.0F;
+  settings.damping_n_s_per_m = 0.01F;
+  settings.surface_offset_m = 1e-4F;
+  settings.max_force_n = 1.0F;
+  settings.side = model::ContactSide::both;
+  auto contact = model::ParticleSurfaceContact::create(settings, both.hash.arena);
+  if (!contact) std::abort();
+  const model::TriangleMeshView mesh{positions, tube.triangles};
+  std::vector<Vec3> centres(21);
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    centres[i] = Vec3(0.015F + 0.001F * static_cast<float>(i), 0.002F, 0.03F);
+  }
+  model::ParticleContactOutput out;
+  for (auto _ : state) {
+    if (!contact->compute(centres, {}, kSphereRadiusM, mesh, {}, broad, out).is_ok()) std::abort();
+    benchmark::DoNotOptimize(out.contact_count);
+  }
+}
+
+BENCHMARK(BM_BroadRefit)->Arg(0)->Arg(1)->Arg(2);
+BENCHMARK(BM_BroadQuery)->ArgsProduct({{0, 1}, {1, 21}});
+BENCHMARK(BM_SegmentContact)->Arg(0)->Arg(1);
+BENCHMARK(BM_FarParticles)->Arg(0)->Arg(1);
 
 BENCHMARK(BM_Rebuild)->Arg(640)->Arg(2560)->Arg(10240)->Arg(40960);
 BENCHMARK(BM_Query)->ArgsProduct({{640, 2560, 10240, 40960}, {1, 8, 21, 64}});

@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -39,6 +40,7 @@
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model/tensor_image.hpp"
 #include "trainer/model/tensor_model.hpp"
+#include "trainer/model/triangle_bvh.hpp"
 
 namespace {
 
@@ -103,8 +105,9 @@ void model_refused(std::size_t kind, const std::string& message) {
 }
 
 // The contact surface the trainer builds over a mesh image's rest positions and triangles
-// (rt/app/src/contact_surface.cpp, make_surface_grid: the same settings from the same data):
-// the bucket grid created, rebuilt over the rest shape and queried around a vertex.
+// (rt/app/src/contact_surface.cpp, make_surface_grid: the same data): the triangle BVH the
+// trainer uses, created (untrusted indices and positions refused with a message), refitted with
+// a slack and queried around a vertex; and the bucket grid, created, rebuilt and queried.
 void exercise_surface(const ModelImage& image, Arena& arena) {
   const std::span<const float> rest = image.floats(SectionId::rest_positions);
   const std::span<const std::uint32_t> triangles = image.u32s(SectionId::triangles);
@@ -122,6 +125,19 @@ void exercise_surface(const ModelImage& image, Arena& arena) {
                                              vertex(triangles[3 * t + (e + 1) % 3]))
                                                 .norm());
     }
+  }
+  auto bvh = TriangleBvh::create(rest, triangles, arena);
+  if (!bvh) {
+    FUZZ_CHECK(!bvh.error().message.empty());
+    return;
+  }
+  {
+    auto bvh_ids = arena.allocate_array<std::uint32_t>(triangle_count, "fuzz bvh query");
+    if (!bvh_ids) return;
+    FUZZ_CHECK(bvh->refit(rest, 0.375F * longest_edge).is_ok() || !std::isfinite(longest_edge));
+    std::size_t bvh_found = 0;
+    (void)bvh->query(Aabb::around_point(vertex(triangles[0]), 1e-3F), *bvh_ids, bvh_found);
+    FUZZ_CHECK(bvh_found <= triangle_count);
   }
   BucketGridSettings settings;
   settings.max_triangles = static_cast<std::uint32_t>(triangle_count);

@@ -48,10 +48,13 @@ core::Expected<BucketGrid> BucketGrid::create(const BucketGridSettings& settings
   if (!cells) return std::move(cells).error();
   auto stamps = carve<std::uint32_t>(arena, settings.max_triangles, "query stamps");
   if (!stamps) return std::move(stamps).error();
+  auto boxes = carve<Aabb>(arena, settings.max_triangles, "triangle boxes");
+  if (!boxes) return std::move(boxes).error();
   grid.bucket_start_ = starts.value();
   grid.entries_ = entries.value();
   grid.triangle_cells_ = cells.value();
   grid.stamps_ = stamps.value();
+  grid.triangle_boxes_ = boxes.value();
   return grid;
 }
 
@@ -95,6 +98,7 @@ std::uint64_t cell_count(const std::int32_t* min, const std::int32_t* max) noexc
 void BucketGrid::clear() noexcept {
   triangle_count_ = 0;
   entry_count_ = 0;
+  bounds_ = Aabb{Vec3::Constant(1.0F), Vec3::Constant(-1.0F)};
   std::fill(bucket_start_.begin(), bucket_start_.end(), 0U);
 }
 
@@ -130,11 +134,20 @@ core::Status BucketGrid::rebuild(std::span<const float> positions_m,
       low = low.cwiseMin(p);
       high = high.cwiseMax(p);
     }
-    triangle_cells_[t] = cells_of(low.array() - slack_m, high.array() + slack_m);
+    const Aabb stored{(low.array() - slack_m).matrix(), (high.array() + slack_m).matrix()};
+    triangle_boxes_[t] = stored;
+    triangle_cells_[t] = cells_of(stored.min_m, stored.max_m);
+    if (t == 0) {
+      bounds_ = stored;
+    } else {
+      bounds_.min_m = bounds_.min_m.cwiseMin(stored.min_m);
+      bounds_.max_m = bounds_.max_m.cwiseMax(stored.max_m);
+    }
     required += cell_count(triangle_cells_[t].min, triangle_cells_[t].max);
   }
   required_entries_ = static_cast<std::size_t>(std::min<std::uint64_t>(required, SIZE_MAX));
   if (required > entries_.size()) {
+    bounds_ = Aabb{Vec3::Constant(1.0F), Vec3::Constant(-1.0F)};
     return {core::StatusCode::capacity_exceeded, "bucket grid: more (triangle, cell) pairs than max_entries"};
   }
   // Pass 2: count per bucket (shifted by one), prefix sums → bucket_start_[b] = first entry.
@@ -164,13 +177,18 @@ core::Status BucketGrid::rebuild(std::span<const float> positions_m,
   return core::Status::ok();
 }
 
-bool BucketGrid::collect_bucket(std::uint32_t bucket, std::span<std::uint32_t> out_ids,
+bool BucketGrid::collect_bucket(std::uint32_t bucket, const Aabb& box, std::span<std::uint32_t> out_ids,
                                 std::size_t& out_count) noexcept {
   for (std::uint32_t e = bucket_start_[bucket]; e < bucket_start_[bucket + 1]; ++e) {
     const std::uint32_t id = entries_[e];
     if (stamps_[id] == stamp_) continue;
+    stamps_[id] = stamp_;  // tested once per query, whatever the answer
+    if (!triangle_boxes_[id].overlaps(box)) {
+      ++rejected_count_;
+      continue;
+    }
     if (out_count == out_ids.size()) return false;
-    stamps_[id] = stamp_;
+    ++passed_count_;
     out_ids[out_count++] = id;
   }
   return true;
@@ -183,7 +201,7 @@ core::Status BucketGrid::query(const Aabb& box, std::span<std::uint32_t> out_ids
       (box.min_m.array() > box.max_m.array()).any()) {
     return {core::StatusCode::invalid_argument, "bucket grid: query box non-finite or inverted"};
   }
-  if (triangle_count_ == 0) return core::Status::ok();
+  if (triangle_count_ == 0 || !bounds_.overlaps(box)) return core::Status::ok();
   if (++stamp_ == 0) {  // wrapped: forget every stamp
     std::fill(stamps_.begin(), stamps_.end(), 0U);
     stamp_ = 1;
@@ -192,14 +210,14 @@ core::Status BucketGrid::query(const Aabb& box, std::span<std::uint32_t> out_ids
   const core::Status truncated{core::StatusCode::capacity_exceeded, "bucket grid: query output full"};
   if (cell_count(range.min, range.max) > table_size()) {
     for (std::uint32_t bucket = 0; bucket <= bucket_mask_; ++bucket) {
-      if (!collect_bucket(bucket, out_ids, out_count)) return truncated;
+      if (!collect_bucket(bucket, box, out_ids, out_count)) return truncated;
     }
     return core::Status::ok();
   }
   for (std::int32_t i = range.min[0]; i <= range.max[0]; ++i) {
     for (std::int32_t j = range.min[1]; j <= range.max[1]; ++j) {
       for (std::int32_t k = range.min[2]; k <= range.max[2]; ++k) {
-        if (!collect_bucket(bucket_of(i, j, k), out_ids, out_count)) return truncated;
+        if (!collect_bucket(bucket_of(i, j, k), box, out_ids, out_count)) return truncated;
       }
     }
   }

@@ -63,7 +63,7 @@ bool DisplacementContact::is_fixed(std::uint32_t node) const noexcept {
   return std::binary_search(fixed_nodes_.begin(), fixed_nodes_.end(), node);
 }
 
-core::Status DisplacementContact::update(const TriangleMeshView& deformed, BucketGrid& grid,
+core::Status DisplacementContact::update(const TriangleMeshView& deformed, TriangleBroadPhase& grid,
                                          const Vec3& previous_tip_m, const Vec3& tip_m) noexcept {
   if (!tip_m.allFinite() || !previous_tip_m.allFinite()) {
     in_contact_ = false;

@@ -123,7 +123,7 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
                                              std::span<const Vec3> particle_velocities_m_per_s,
                                              float radius_m, const TriangleMeshView& mesh,
                                              std::span<const float> surface_velocities_m_per_s,
-                                             BucketGrid& grid, ParticleContactOutput& out) noexcept {
+                                             TriangleBroadPhase& grid, ParticleContactOutput& out) noexcept {
   clear_outputs();
   core::Status status = core::Status::ok();
   if (particles_m.size() > settings_.max_particles) {
@@ -172,7 +172,7 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
                                                        const Vec3& velocity, float reach_m,
                                                        const TriangleMeshView& mesh,
                                                        std::span<const float> surface_velocities,
-                                                       BucketGrid& grid) noexcept {
+                                                       TriangleBroadPhase& grid) noexcept {
   std::size_t id_count = 0;
   core::Status status = grid.query(Aabb::around_point(centre_m, reach_m), candidate_ids_, id_count);
   // capacity_exceeded: the ids returned are still used (a crowded region keeps its contacts).

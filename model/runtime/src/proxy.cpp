@@ -88,7 +88,7 @@ void GodObjectProxy::reset(const Vec3& tool_m) noexcept {
 }
 
 core::Status GodObjectProxy::first_crossing(const Vec3& p0, const Vec3& p1,
-                                            const TriangleMeshView& mesh, BucketGrid& grid,
+                                            const TriangleMeshView& mesh, TriangleBroadPhase& grid,
                                             bool& found, SurfacePoint& hit) noexcept {
   found = false;
   std::size_t count = 0;
@@ -111,7 +111,7 @@ core::Status GodObjectProxy::first_crossing(const Vec3& p0, const Vec3& p1,
 }
 
 core::Status GodObjectProxy::nearest_within_radius(const Vec3& tool_m, const TriangleMeshView& mesh,
-                                                   BucketGrid& grid, bool& found,
+                                                   TriangleBroadPhase& grid, bool& found,
                                                    SurfacePoint& nearest) noexcept {
   found = false;
   std::size_t count = 0;
@@ -135,7 +135,7 @@ core::Status GodObjectProxy::nearest_within_radius(const Vec3& tool_m, const Tri
 }
 
 core::Status GodObjectProxy::walk(const Vec3& tool_m, const TriangleMeshView& mesh,
-                                  BucketGrid& grid, SurfacePoint& point) noexcept {
+                                  TriangleBroadPhase& grid, SurfacePoint& point) noexcept {
   const float tolerance = settings_.contact_tolerance_m;
   // A move must shorten the distance by this much: two triangles sharing the minimum (an
   // edge) must not hand the point back and forth.
@@ -190,7 +190,7 @@ core::Status GodObjectProxy::walk(const Vec3& tool_m, const TriangleMeshView& me
 }
 
 core::Status GodObjectProxy::pseudo_normal(const SurfacePoint& point, const TriangleMeshView& mesh,
-                                           BucketGrid& grid, Vec3& normal) noexcept {
+                                           TriangleBroadPhase& grid, Vec3& normal) noexcept {
   normal = Vec3::Zero();
   const float tolerance = settings_.contact_tolerance_m;
   std::size_t count = 0;
@@ -239,7 +239,7 @@ void GodObjectProxy::set_contact(const SurfacePoint& point, const Vec3& directio
 }
 
 core::Status GodObjectProxy::update(const Vec3& tool_m, const Vec3& tool_velocity_m_per_s,
-                                    const TriangleMeshView& mesh, BucketGrid& grid) noexcept {
+                                    const TriangleMeshView& mesh, TriangleBroadPhase& grid) noexcept {
   if (!tool_m.allFinite() || !tool_velocity_m_per_s.allFinite()) {
     return {core::StatusCode::numeric_error, "proxy: non-finite tool position or velocity"};
   }
@@ -250,7 +250,7 @@ core::Status GodObjectProxy::update(const Vec3& tool_m, const Vec3& tool_velocit
 }
 
 core::Status GodObjectProxy::advance(const Vec3& tool_m, const Vec3& tool_velocity_m_per_s,
-                                     const TriangleMeshView& mesh, BucketGrid& grid,
+                                     const TriangleMeshView& mesh, TriangleBroadPhase& grid,
                                      bool may_restart) noexcept {
   const float radius = settings_.tool_radius_m;
   Vec3 free_from = previous_tool_m_;

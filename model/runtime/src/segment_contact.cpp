@@ -135,7 +135,7 @@ void SegmentSurfaceContact::add_node_force(std::uint32_t node, const Vec3& force
 
 core::Status SegmentSurfaceContact::update(std::span<const ToolCapsule> capsules, const TriangleMeshView& mesh,
                                            std::span<const float> surface_velocities_m_per_s,
-                                           BucketGrid& grid) noexcept {
+                                           TriangleBroadPhase& grid) noexcept {
   clear_outputs();
   if (capsules.size() > kMaxSegments) {
     return {core::StatusCode::invalid_argument, "segment contact: more than 3 capsules"};
@@ -205,7 +205,7 @@ Vec3 SegmentSurfaceContact::pseudo_normal(std::size_t best, std::size_t candidat
 
 core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, const TriangleMeshView& mesh,
                                                     std::span<const float> surface_velocities,
-                                                    BucketGrid& grid) noexcept {
+                                                    TriangleBroadPhase& grid) noexcept {
   const auto segment_index = static_cast<std::size_t>(capsule.segment);
   std::int8_t& side = sides_[segment_index];
   const float reach_m = capsule.radius_m + settings_.surface_half_thickness_m;
@@ -215,7 +215,7 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
   }
   std::size_t id_count = 0;
   core::Status status =
-      grid.query(Aabb::around_segment(capsule.start_m, capsule.end_m, reach_m), candidate_ids_, id_count);
+      grid.query_segment(capsule.start_m, capsule.end_m, reach_m, candidate_ids_, id_count);
   if (status.code() == core::StatusCode::capacity_exceeded) {
     ++candidate_overflow_count_;  // the ids returned are still used: a crowded region keeps its contact
   } else if (!status.is_ok()) {

@@ -1,7 +1,6 @@
 #include "trainer/app/contact_surface.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <limits>
 
 namespace trainer::app {
@@ -15,24 +14,9 @@ bool ContactSurface::near(const Vec3& world_m) const noexcept {
 }
 
 bool ContactSurface::refit_grid() noexcept {
-  model::BucketGrid& bucket = *grid;
-  const float slack = kGridSlackCells * bucket.cell_size_m();
-  float largest_squared = 0.0F;
-  for (std::size_t base = 0; base + 2 < deformed.size(); base += 3) {
-    const float dx = deformed[base] - grid_positions[base];
-    const float dy = deformed[base + 1] - grid_positions[base + 1];
-    const float dz = deformed[base + 2] - grid_positions[base + 2];
-    largest_squared = std::max(largest_squared, dx * dx + dy * dy + dz * dz);
-  }
-  // NaN compares false: a non-finite surface goes to rebuild(), which refuses it.
-  if (grid_built && largest_squared <= slack * slack) {
-    surface_ready = true;
-    return true;
-  }
-  grid_built = bucket.rebuild(deformed, triangles, slack).is_ok();
-  if (grid_built) std::copy(deformed.begin(), deformed.end(), grid_positions.begin());
-  surface_ready = grid_built;
-  return grid_built;
+  // A non-finite surface is refused (and the surface is not ready) by refit().
+  surface_ready = grid->refit(deformed, grid_slack_m).is_ok();
+  return surface_ready;
 }
 
 std::size_t ContactSurface::tip_targets(std::size_t instrument, const InstrumentFrame& frame,
@@ -79,14 +63,11 @@ void ContactSurface::release_all() noexcept {
 
 namespace {
 
-// A bucket grid for a surface, the copy of the positions it is built over (`grid_positions`,
-// 3n), and the rest surface's box grown by kSurfaceMarginM into `near_box`.
-core::Expected<model::BucketGrid> make_surface_grid(ContactSurface& surface, core::Arena& arena) {
+// The broad phase of a surface (a hierarchy over the rest mesh), its slack, and the rest
+// surface's box grown by kSurfaceMarginM into `near_box`.
+core::Expected<model::TriangleBvh> make_surface_grid(ContactSurface& surface, core::Arena& arena) {
   const std::span<const float> rest = surface.rest_positions;
   const std::span<const std::uint32_t> triangles = surface.triangles;
-  auto positions = arena.allocate_array<float>(rest.size(), "bucket grid positions");
-  if (!positions) return std::move(positions).error();
-  surface.grid_positions = positions.value();
   const auto vertex = [&](std::uint32_t node) {
     const std::size_t base = 3 * static_cast<std::size_t>(node);
     return Vec3(rest[base], rest[base + 1], rest[base + 2]);
@@ -110,13 +91,10 @@ core::Expected<model::BucketGrid> make_surface_grid(ContactSurface& surface, cor
       longest_edge = std::max(longest_edge, (a - b).norm());
     }
   }
-  model::BucketGridSettings grid_settings;
-  grid_settings.max_triangles = static_cast<std::uint32_t>(triangle_count);
-  grid_settings.max_vertices = static_cast<std::uint32_t>(vertex_count);
-  grid_settings.cell_size_m = 1.5F * longest_edge;
-  grid_settings.max_entries = static_cast<std::uint32_t>(27 * triangle_count);
-  grid_settings.table_size = std::bit_ceil(2U * grid_settings.max_entries / 8U + 1U);
-  return model::BucketGrid::create(grid_settings, arena);
+  surface.grid_slack_m = kGridSlackEdges * longest_edge;
+  auto bvh = model::TriangleBvh::create(rest, triangles, arena);
+  if (!bvh) return core::make_error("contact surface: " + bvh.error().message);
+  return bvh;
 }
 
 }  // namespace

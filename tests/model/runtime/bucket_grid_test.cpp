@@ -122,9 +122,10 @@ TEST(BucketGrid, QueriesEqualBruteForceOnRandomDeformedMeshes) {
         std::set<std::uint32_t> contacts_grid;
         std::set<std::uint32_t> contacts_brute;
         for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-          if (overlaps(triangle_box(mesh, t), box)) {
-            ASSERT_TRUE(found.count(t)) << "missed triangle " << t << " cell " << cell_size;
-          }
+          // Exactly the triangles whose box overlaps (no slack: the stored box is the AABB):
+          // none missed, and no hash collision or cell overhang passed on (issue 19).
+          ASSERT_EQ(found.count(t) != 0, overlaps(triangle_box(mesh, t), box))
+              << "triangle " << t << " cell " << cell_size;
           const Vec3 a = mesh.vertex(mesh.triangles[3 * t]);
           const Vec3 b = mesh.vertex(mesh.triangles[3 * t + 1]);
           const Vec3 c = mesh.vertex(mesh.triangles[3 * t + 2]);
@@ -191,6 +192,32 @@ TEST(BucketGrid, SlackKeepsTheGridRightWhileVerticesMoveLessThanIt) {
   EXPECT_GT(missed_without_slack, 0U) << "the deformation should move triangles out of their rest cells";
   EXPECT_EQ(grid.rebuild(mesh.rest, mesh.triangles, -1e-3F).code(), core::StatusCode::invalid_argument);
   EXPECT_EQ(grid.rebuild(mesh.rest, mesh.triangles, NAN).code(), core::StatusCode::invalid_argument);
+}
+
+// A box outside the union of the stored boxes returns nothing and touches no bucket (the
+// catheter particles far from the duct); bounds() is that union, grown by the slack.
+TEST(BucketGrid, BoxOutsideTheBoundsReturnsNothing) {
+  core::Arena arena = make_arena();
+  Mesh mesh = make_tube(21, 16);
+  BucketGrid grid = make_grid(arena, 640, 336, 0.002F);
+  ASSERT_TRUE(grid.rebuild(mesh.positions, mesh.triangles, 0.0005F).is_ok());
+  EXPECT_NEAR(grid.bounds().min_m.z(), -0.0005F, 1e-7F);
+  EXPECT_NEAR(grid.bounds().max_m.z(), 0.0405F, 1e-7F);
+  EXPECT_NEAR(grid.bounds().max_m.x(), 0.0045F, 1e-7F);
+  std::vector<std::uint32_t> out(640);
+  std::size_t count = 7;
+  const std::uint64_t rejected = grid.rejected_count();
+  const std::uint64_t passed = grid.passed_count();
+  ASSERT_TRUE(grid.query(Aabb::around_point({0.0F, 0.0F, 0.0420F}, 0.001F), out, count).is_ok());
+  EXPECT_EQ(count, 0U);
+  EXPECT_EQ(grid.rejected_count(), rejected);  // not one bucket entry looked at
+  EXPECT_EQ(grid.passed_count(), passed);
+  // Touching the bounds' face (closed boxes) reaches the end ring's triangles.
+  ASSERT_TRUE(grid.query(Aabb::around_point({0.004F, 0.0F, 0.0415F}, 0.001F), out, count).is_ok());
+  EXPECT_GT(count, 0U);
+  grid.clear();
+  ASSERT_TRUE(grid.query(Aabb::around_point({0.004F, 0.0F, 0.02F}, 0.001F), out, count).is_ok());
+  EXPECT_EQ(count, 0U);
 }
 
 TEST(BucketGrid, CandidatesStayFewWithAGoodCellSize) {

@@ -24,6 +24,15 @@
 // P' lies inside its AABB under P grown by s. The trainer rebuilds only when some vertex has
 // moved farther than s since the last rebuild (docs/collision.md measures the saving).
 //
+// Exact filter (issue 19): a hash bucket also holds triangles of other cells (hash collisions)
+// and a triangle's cells reach beyond its box; on the duct ~70 % of what the buckets held did
+// not overlap the query. Every triangle's stored box (its AABB at the rebuild grown by the
+// slack) is kept beside the table, and query() returns only triangles whose stored box
+// overlaps the query box, in the order the buckets gave them (so the narrow phases see the
+// same triangles in the same order as before, less ones they were bound to reject). A query
+// box outside the union of the stored boxes (bounds()) returns nothing without touching the
+// table: a catheter particle far from the duct costs one box test.
+//
 // Units: metres. One thread owns a grid (the haptic thread); query() is not const because it
 // stamps triangles to deduplicate without clearing a set.
 #pragma once
@@ -37,23 +46,9 @@
 #include "trainer/core/arena.hpp"
 #include "trainer/core/expected.hpp"
 #include "trainer/core/status.hpp"
+#include "trainer/model/broad_phase.hpp"
 
 namespace trainer::model {
-
-using Vec3 = Eigen::Vector3f;
-
-struct Aabb {
-  Vec3 min_m = Vec3::Zero();
-  Vec3 max_m = Vec3::Zero();
-
-  static Aabb around_point(const Vec3& centre, float half_size_m) noexcept {
-    return {(centre.array() - half_size_m).matrix(), (centre.array() + half_size_m).matrix()};
-  }
-  static Aabb around_segment(const Vec3& p0, const Vec3& p1, float margin_m) noexcept {
-    return {(p0.cwiseMin(p1).array() - margin_m).matrix(),
-            (p0.cwiseMax(p1).array() + margin_m).matrix()};
-  }
-};
 
 struct BucketGridSettings {
   std::uint32_t max_triangles = 0;
@@ -63,7 +58,7 @@ struct BucketGridSettings {
   std::uint32_t max_entries = 0;     // (triangle, cell) pairs over the whole mesh
 };
 
-class BucketGrid {
+class BucketGrid final : public TriangleBroadPhase {
  public:
   // Cell coordinates are clamped to ±kMaxCellIndex so a far-away (or huge) coordinate cannot
   // overflow; the clamp is applied to stored triangles and query boxes alike, so the result
@@ -86,12 +81,12 @@ class BucketGrid {
   core::Status rebuild(std::span<const float> positions_m,
                        std::span<const std::uint32_t> triangles, float slack_m = 0.0F) noexcept;
 
-  // Triangle ids whose buckets the box touches, each once, into `out_ids`; `out_count` is
-  // how many were written. capacity_exceeded when `out_ids` was too short (the first
+  // Triangle ids whose stored box (AABB at the last rebuild grown by its slack) overlaps the
+  // box, each once, into `out_ids`; `out_count` is how many were written. capacity_exceeded when `out_ids` was too short (the first
   // out_ids.size() found are written); invalid_argument for a non-finite or inverted box.
   // A box covering more cells than there are buckets scans every bucket instead.
   core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids,
-                     std::size_t& out_count) noexcept;
+                     std::size_t& out_count) noexcept override;
 
   void clear() noexcept;
 
@@ -100,6 +95,12 @@ class BucketGrid {
   // Pairs the last rebuild needed (also when it refused for lack of max_entries).
   std::size_t required_entries() const noexcept { return required_entries_; }
   float cell_size_m() const noexcept { return cell_size_m_; }
+  // Union of the stored boxes of the last rebuild (empty-inverted when nothing is stored).
+  const Aabb& bounds() const noexcept { return bounds_; }
+  // Since create(): triangles the buckets held that the exact box test rejected, and those it
+  // passed (a measure of the hash's false candidates; docs/collision.md).
+  std::uint64_t rejected_count() const noexcept { return rejected_count_; }
+  std::uint64_t passed_count() const noexcept { return passed_count_; }
   std::size_t table_size() const noexcept { return bucket_start_.size() - 1; }
 
  private:
@@ -112,8 +113,9 @@ class BucketGrid {
   std::int32_t cell_index(float coordinate_m) const noexcept;
   CellRange cells_of(const Vec3& min_m, const Vec3& max_m) const noexcept;
   std::uint32_t bucket_of(std::int32_t i, std::int32_t j, std::int32_t k) const noexcept;
-  // Appends the not-yet-stamped triangles of `bucket`; false when out_ids is full.
-  bool collect_bucket(std::uint32_t bucket, std::span<std::uint32_t> out_ids,
+  // Appends the not-yet-stamped triangles of `bucket` whose stored box overlaps `box`; false
+  // when out_ids is full.
+  bool collect_bucket(std::uint32_t bucket, const Aabb& box, std::span<std::uint32_t> out_ids,
                       std::size_t& out_count) noexcept;
 
   float cell_size_m_ = 0.0F;
@@ -124,10 +126,14 @@ class BucketGrid {
   std::size_t entry_count_ = 0;
   std::size_t required_entries_ = 0;
   std::uint32_t stamp_ = 0;
+  Aabb bounds_{Vec3::Constant(1.0F), Vec3::Constant(-1.0F)};
+  std::uint64_t rejected_count_ = 0;
+  std::uint64_t passed_count_ = 0;
 
   std::span<std::uint32_t> bucket_start_;  // table_size + 1 prefix sums into entries_
   std::span<std::uint32_t> entries_;       // triangle ids, grouped by bucket
   std::span<CellRange> triangle_cells_;    // per triangle: the cells its AABB covers
+  std::span<Aabb> triangle_boxes_;         // per triangle: its AABB grown by the slack
   std::span<std::uint32_t> stamps_;        // per triangle: last query that returned it
 };
 

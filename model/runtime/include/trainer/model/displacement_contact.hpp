@@ -54,7 +54,7 @@ class DisplacementContact {
 
   // Starts a contact (see above) or keeps the current one. `deformed` is the surface now, the
   // grid rebuilt over it. Refuses non-finite tips (numeric_error, contact released).
-  core::Status update(const TriangleMeshView& deformed, BucketGrid& grid,
+  core::Status update(const TriangleMeshView& deformed, TriangleBroadPhase& grid,
                       const Vec3& previous_tip_m, const Vec3& tip_m) noexcept;
 
   // Imposed displacements for the contact's free nodes into `out` (≥ kMaxTargets entries);

@@ -129,7 +129,7 @@ class ParticleSurfaceContact {
   core::Status compute(std::span<const Vec3> particles_m,
                        std::span<const Vec3> particle_velocities_m_per_s, float radius_m,
                        const TriangleMeshView& mesh, std::span<const float> surface_velocities_m_per_s,
-                       BucketGrid& grid, ParticleContactOutput& out) noexcept;
+                       TriangleBroadPhase& grid, ParticleContactOutput& out) noexcept;
 
   const ParticleContactSettings& settings() const noexcept { return settings_; }
 
@@ -151,7 +151,7 @@ class ParticleSurfaceContact {
   // Handles one particle; returns the first problem (contacts beyond capacity are counted).
   core::Status particle_contacts(std::size_t particle, const Vec3& centre_m, const Vec3& velocity,
                                  float reach_m, const TriangleMeshView& mesh,
-                                 std::span<const float> surface_velocities, BucketGrid& grid) noexcept;
+                                 std::span<const float> surface_velocities, TriangleBroadPhase& grid) noexcept;
   // Applies the deepest contact of one patch (index into the candidate scratch).
   core::Status apply_contact(std::size_t particle, std::uint32_t deepest, std::size_t candidate_count,
                              const Vec3& centre_m, const Vec3& velocity, float reach_m,

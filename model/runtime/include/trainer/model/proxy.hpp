@@ -97,7 +97,7 @@ class GodObjectProxy {
   // contact if it was, so a crowded region never lets the tool escape); invalid_argument
   // from the grid. The contact is valid after every call, whatever the status.
   core::Status update(const Vec3& tool_m, const Vec3& tool_velocity_m_per_s,
-                      const TriangleMeshView& mesh, BucketGrid& grid) noexcept;
+                      const TriangleMeshView& mesh, TriangleBroadPhase& grid) noexcept;
 
   // Free at `tool_m`: no contact, no force; the next update starts from there.
   void reset(const Vec3& tool_m) noexcept;
@@ -116,22 +116,22 @@ class GodObjectProxy {
   GodObjectProxy() = default;
   // First triangle crossed from its outward side along p0 → p1 (smallest t).
   core::Status first_crossing(const Vec3& p0, const Vec3& p1, const TriangleMeshView& mesh,
-                              BucketGrid& grid, bool& found, SurfacePoint& hit) noexcept;
+                              TriangleBroadPhase& grid, bool& found, SurfacePoint& hit) noexcept;
   // Closest point to `tool_m` on the triangles within the radius, in front of them.
   core::Status nearest_within_radius(const Vec3& tool_m, const TriangleMeshView& mesh,
-                                     BucketGrid& grid, bool& found, SurfacePoint& nearest) noexcept;
+                                     TriangleBroadPhase& grid, bool& found, SurfacePoint& nearest) noexcept;
   // Walks from `start` towards the local minimum of the distance to `tool_m`.
-  core::Status walk(const Vec3& tool_m, const TriangleMeshView& mesh, BucketGrid& grid,
+  core::Status walk(const Vec3& tool_m, const TriangleMeshView& mesh, TriangleBroadPhase& grid,
                     SurfacePoint& point) noexcept;
   // Angle-weighted pseudo-normal at a surface point (unnormalised; zero if none).
   core::Status pseudo_normal(const SurfacePoint& point, const TriangleMeshView& mesh,
-                             BucketGrid& grid, Vec3& normal) noexcept;
+                             TriangleBroadPhase& grid, Vec3& normal) noexcept;
   void set_free(const Vec3& tool_m) noexcept;
   void set_contact(const SurfacePoint& point, const Vec3& direction, const Vec3& tool_m,
                    const Vec3& tool_velocity_m_per_s) noexcept;
   // The cycle's logic; `may_restart` allows one nested start of contact (bounded recursion).
   core::Status advance(const Vec3& tool_m, const Vec3& tool_velocity_m_per_s,
-                       const TriangleMeshView& mesh, BucketGrid& grid, bool may_restart) noexcept;
+                       const TriangleMeshView& mesh, TriangleBroadPhase& grid, bool may_restart) noexcept;
 
   ProxySettings settings_{};
   std::span<std::uint32_t> candidates_;

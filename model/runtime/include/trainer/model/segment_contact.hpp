@@ -28,8 +28,8 @@
 // still pushed back (never the other way), with a force that peaks at k·reach on the
 // mid-surface and falls to zero at reach behind it, where the contact ends and the memory is
 // dropped (the wall has been pushed through; no force jump). Contact, and the memory, end
-// when no non-degenerate triangle is within reach (the grid query box is the segment's box
-// grown by reach, so every triangle within reach is a candidate), when the segment is not
+// when no non-degenerate triangle is within reach (the broad phase's query_segment() with a
+// margin of reach returns every triangle within reach as a candidate), when the segment is not
 // passed to an update, or at reset().
 //
 // Force on the tool: f = k·depth − b·((v_q − v_p)·n), clipped at 0 (the damper never pulls)
@@ -142,7 +142,7 @@ class SegmentSurfaceContact {
   //   capacity_exceeded a grid query returned more than max_candidates triangles: that segment
   //                     uses the first max_candidates (candidate_overflow_count() counts it).
   core::Status update(std::span<const ToolCapsule> capsules, const TriangleMeshView& mesh,
-                      std::span<const float> surface_velocities_m_per_s, BucketGrid& grid) noexcept;
+                      std::span<const float> surface_velocities_m_per_s, TriangleBroadPhase& grid) noexcept;
 
   // Forgets every contact and side memory (a tool withdrawn, a scene reset).
   void reset() noexcept;
@@ -178,7 +178,7 @@ class SegmentSurfaceContact {
   static bool better(const Candidate& candidate, const Candidate& current, float tie_m) noexcept;
   void clear_outputs() noexcept;
   core::Status segment_contact(const ToolCapsule& capsule, const TriangleMeshView& mesh,
-                               std::span<const float> surface_velocities, BucketGrid& grid) noexcept;
+                               std::span<const float> surface_velocities, TriangleBroadPhase& grid) noexcept;
   // Outward angle-weighted pseudo-normal at the closest feature of candidates_[best] (unit).
   Vec3 pseudo_normal(std::size_t best, std::size_t candidate_count, const TriangleMeshView& mesh) const noexcept;
   void add_node_force(std::uint32_t node, const Vec3& force_n) noexcept;

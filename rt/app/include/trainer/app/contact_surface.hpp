@@ -1,6 +1,6 @@
 // The deformable surface of one soft-tissue model (a modal duct or a Cotin tensor model) as the
 // tools see it: its placement in the trainer frame, the deformed positions (model frame), the
-// bucket grid over them and a displacement-driven tip contact per instrument that may touch it.
+// broad phase over them (a TriangleBvh refitted, docs/collision.md) and a displacement-driven tip contact per instrument that may touch it.
 // The model stages (modal_stage, tensor_stage) own the surface of their models; the catheter
 // stage reads the modal models' surfaces.
 #pragma once
@@ -18,7 +18,7 @@
 #include "trainer/config/scene.hpp"
 #include "trainer/core/arena.hpp"
 #include "trainer/core/expected.hpp"
-#include "trainer/model/bucket_grid.hpp"
+#include "trainer/model/triangle_bvh.hpp"
 #include "trainer/model/displacement_contact.hpp"
 
 namespace trainer::app {
@@ -33,12 +33,12 @@ inline constexpr float kJawRadiusM = 0.001F;
 // How far outside a model's rest mesh a tool tip must be for the model's surface to be left
 // stale: more than the model deforms plus one cycle of tool travel.
 inline constexpr float kSurfaceMarginM = 0.02F;
-// Slack of the surfaces' bucket grids, in cells: a rebuild stores every triangle with its box
-// grown by it, so the grid stays right until a vertex has moved that far (BucketGrid). A
-// quarter cell (~0.75 mm on the duct) triples the (triangle, cell) entries of a duct-like tube
-// (1,568 → 4,864, within max_entries = 27 per triangle) and rebuilds only when the wall has
-// moved that far instead of every cycle (docs/collision.md).
-inline constexpr float kGridSlackCells = 0.25F;
+// Slack of the surfaces' broad phases, in units of the rest mesh's longest edge: a refit stores
+// every triangle with its box grown by it, and the next refit is skipped while no coordinate
+// has moved farther (TriangleBvh::refit). 0.375 edge (0.75 mm on the duct) is the slack the
+// bucket grid had (a quarter of its 1.5-edge cell); a refit costs a pass over the triangles
+// and nodes, not the grid's rebuild (docs/collision.md measures both).
+inline constexpr float kGridSlackEdges = 0.375F;
 
 struct ContactSurface {
   RigidTransform transform;                  // model frame → trainer frame ([[model]] placement)
@@ -46,22 +46,21 @@ struct ContactSurface {
   std::span<const float> rest_positions;     // 3n, model frame (the image's)
   std::span<const std::uint32_t> triangles;  // 3 per triangle (the image's)
   std::span<float> deformed;                 // 3n, model frame
-  std::optional<model::BucketGrid> grid;     // none when nothing collides with the model
+  std::optional<model::TriangleBvh> grid;    // none when nothing collides with the model
   std::array<std::optional<model::DisplacementContact>, kMaxInstruments> contacts{};
   // The rest mesh's box grown by kSurfaceMarginM: while no tool (or particle) is inside it and
   // no contact holds, the surface is not rebuilt (a tool far away costs nothing).
   model::Aabb near_box{};
-  bool surface_ready = false;       // deformed and grid are this cycle's
-  std::span<float> grid_positions;  // 3n: the surface the grid was last rebuilt over
-  bool grid_built = false;
+  bool surface_ready = false;  // deformed and grid are this cycle's
+  float grid_slack_m = 0.0F;   // kGridSlackEdges × the rest mesh's longest edge
 
   std::size_t vertex_count() const noexcept { return rest_positions.size() / 3; }
   model::TriangleMeshView view() const noexcept { return {deformed, triangles}; }
   // Is the trainer-frame point inside near_box (model frame)?
   bool near(const Eigen::Vector3f& world_m) const noexcept;
-  // Makes the grid answer for `deformed`: rebuilt with a slack of kGridSlackCells cells, and only
-  // when some vertex has moved farther than the slack since the last rebuild. Sets and returns
-  // surface_ready (false on a refusal, e.g. a non-finite surface).
+  // Makes the grid answer for `deformed`: refitted with a slack of grid_slack_m, and only
+  // when some coordinate has moved farther than the slack since the last refit. Sets and
+  // returns surface_ready (false on a refusal, e.g. a non-finite surface).
   bool refit_grid() noexcept;
   // Instrument i's tip contact this cycle: update() with the tip's path, then the imposed
   // displacements of its material point into `out`; returns how many (0 when free). A refused
@@ -81,8 +80,9 @@ struct ContactSurface {
 };
 
 // The placement, the deformed copy of the rest surface and — when an instrument may touch the
-// model or `with_grid` (a catheter collides with it) — its bucket grid: cells 1.5 × the rest
-// mesh's longest edge, near_box from the rest mesh. Contacts are added by the caller.
+// model or `with_grid` (a catheter collides with it) — its broad phase (a TriangleBvh over the
+// rest mesh, leaves of 4 triangles), near_box from the rest mesh. Contacts are added by the
+// caller.
 core::Expected<ContactSurface> make_contact_surface(const config::SceneModelConfig& entry,
                                                     std::span<const float> rest_positions,
                                                     std::span<const std::uint32_t> triangles,

@@ -1,0 +1,112 @@
+// Broad phase for a deforming triangle mesh of fixed connectivity (the modal duct, a tensor
+// model's surface): a bounding-volume hierarchy of axis-aligned boxes built once over the rest
+// positions and refitted, never rebuilt, as the mesh deforms (issue 19; docs/collision.md).
+//
+// Build (setup path, create()): triangles are split recursively at the median of their
+// centroids along the longest axis of the centroids' box, down to leaves of at most leaf_size
+// triangles; nodes are stored in depth-first order (a node's left child follows it), so a
+// refit is one backward pass over the nodes. The topology never changes afterwards: a mesh
+// that deforms a lot gets looser boxes, never a wrong answer.
+//
+// Refit (RT path): every triangle's box is its AABB over the given positions grown by a slack
+// s, and every node's box the union of its children's. refit() skips the work while every
+// coordinate is within s of the positions of the last refit (a triangle's AABB then still lies
+// inside its stored box), so the work per cycle is one pass over the vertices, plus one pass
+// over triangles and nodes when something moved farther: bounded, O(n + m), never the
+// hash's rebuild spike.
+//
+// Query (RT path): the triangles whose stored box overlaps the query box — an exact test per
+// triangle, no false candidate of a hash or a cell overhang — returned in increasing id order
+// (collected in a bitset, emitted by word), so the narrow phases see them in the same order
+// whatever the hierarchy or the refit history: the contacts found are bit-identical to a brute
+// force over all triangles in id order (tests/model/runtime/triangle_bvh_test.cpp).
+//
+// Units: metres. One thread owns a hierarchy; every array is carved from a core::Arena.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "trainer/core/arena.hpp"
+#include "trainer/core/expected.hpp"
+#include "trainer/core/status.hpp"
+#include "trainer/model/broad_phase.hpp"
+
+namespace trainer::model {
+
+class TriangleBvh final : public TriangleBroadPhase {
+ public:
+  // Deepest hierarchy create() accepts (a median split of 2^32 triangles in leaves of 1 is 33
+  // deep): the query's traversal stack is this long.
+  static constexpr std::size_t kMaxDepth = 40;
+
+  // Setup path. `positions_m`: 3n floats (x y z per vertex), `triangles`: 3m vertex indices.
+  // Refuses (naming what and the value): no triangle, a length not a multiple of 3, an index
+  // ≥ n, a non-finite position, leaf_size outside 1..64, an arena too small. The hierarchy
+  // is refitted to `positions_m` with no slack (ready to query).
+  static core::Expected<TriangleBvh> create(std::span<const float> positions_m,
+                                            std::span<const std::uint32_t> triangles,
+                                            core::Arena& arena, std::uint32_t leaf_size = 4);
+
+  // ---- RT path: noexcept, no heap ----
+
+  // Makes the hierarchy answer for `positions_m` (3n, the n of create()): boxes grown by
+  // `slack_m`, refitted only when some coordinate moved farther than slack_m since the last
+  // refit (or the slack changed, or the last refit failed). invalid_argument: wrong length,
+  // negative or non-finite slack; numeric_error: a non-finite position. On a refusal the
+  // hierarchy is empty (queries return nothing) until a good refit.
+  core::Status refit(std::span<const float> positions_m, float slack_m = 0.0F) noexcept;
+
+  // Triangle ids whose stored box overlaps `box`, increasing, each once. capacity_exceeded
+  // when out_ids is too short (the lowest out_ids.size() ids are written); invalid_argument
+  // for a non-finite or inverted box.
+  core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids,
+                     std::size_t& out_count) noexcept override;
+
+  // Triangles whose stored box, grown by margin_m (and a relative 1e-5 for rounding), the
+  // segment p0–p1 passes through (slab test per node and per triangle), increasing, each once:
+  // every triangle closer than margin_m to the segment is among them (a point of the segment
+  // within margin_m of a point of the triangle lies in the grown box). Same statuses as query().
+  core::Status query_segment(const Vec3& p0, const Vec3& p1, float margin_m, std::span<std::uint32_t> out_ids,
+                             std::size_t& out_count) noexcept override;
+
+  std::size_t triangle_count() const noexcept { return triangle_boxes_.size(); }
+  std::size_t vertex_count() const noexcept { return reference_.size() / 3; }
+  std::size_t node_count() const noexcept { return nodes_.size(); }
+  std::size_t depth() const noexcept { return depth_; }
+  bool ready() const noexcept { return ready_; }
+  // Root box (the union of the stored triangle boxes); meaningful while ready().
+  const Aabb& bounds() const noexcept { return nodes_[0].box; }
+  // Since create(): refits that did the work (a coordinate beyond the slack), and calls.
+  std::uint64_t refit_count() const noexcept { return refit_count_; }
+  std::uint64_t refit_calls() const noexcept { return refit_calls_; }
+
+ private:
+  struct Node {
+    Aabb box;
+    std::uint32_t first = 0;  // leaf: first slot in order_; internal: index of the right child
+    std::uint32_t count = 0;  // leaf: triangles (≥ 1); internal: 0 (the left child is index + 1)
+  };
+
+  TriangleBvh() = default;
+  void refit_boxes() noexcept;
+  // The traversal of query() and query_segment(): `accept(box)` says whether a node or
+  // triangle box may hold an answer.
+  template <class Accept>
+  core::Status collect(Accept&& accept, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+
+  std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
+  std::span<Node> nodes_;
+  std::span<std::uint32_t> order_;     // triangle ids, leaf by leaf
+  std::span<Aabb> triangle_boxes_;     // per triangle, grown by slack_m_
+  std::span<float> reference_;         // 3n: the positions of the last refit
+  std::span<std::uint64_t> hit_bits_;  // per triangle, one query's hits (all zero between queries)
+  std::size_t depth_ = 0;
+  float slack_m_ = 0.0F;
+  bool ready_ = false;
+  std::uint64_t refit_count_ = 0;
+  std::uint64_t refit_calls_ = 0;
+};
+
+}  // namespace trainer::model
