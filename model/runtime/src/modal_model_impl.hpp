@@ -200,6 +200,19 @@ core::Expected<BasicModalModel<Scalar>> BasicModalModel<Scalar>::create(
   if (!cache) return core::make_error("modal model: arena exhausted: " + cache.error().message);
   model.contact_cache_ = cache.value();
   model.contact_cache_->slot_count = 0;
+  model.residual_symmetric_ = true;
+  const std::size_t residual_rows = 3 * s;
+  for (std::size_t row = 0;
+       row < residual_rows && !data.residual_compliance.empty() && model.residual_symmetric_;
+       ++row) {
+    for (std::size_t column = row + 1; column < residual_rows; ++column) {
+      if (data.residual_compliance[row * residual_rows + column] !=
+          data.residual_compliance[column * residual_rows + row]) {
+        model.residual_symmetric_ = false;
+        break;
+      }
+    }
+  }
 
   // Newmark constants per mode (METHODS.md §1, Appendix B corrected), in double.
   const double dt = settings.time_step_s;
@@ -464,7 +477,10 @@ void BasicModalModel<Scalar>::fill_cache_blocks(std::uint32_t slot_a,
       // order); the residual compliance read in its own orientation, as a solve with node b
       // first reads it.
       double transposed = modal;
-      if (static_correction_) transposed += residual_entry(node_b, axis_b, node_a, axis_a);
+      if (static_correction_) {
+        transposed = residual_symmetric_ ? value
+                                         : transposed + residual_entry(node_b, axis_b, node_a, axis_a);
+      }
       entry(slot_b, axis_b, slot_a, axis_a) = transposed;
     }
   }

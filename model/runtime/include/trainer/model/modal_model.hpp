@@ -254,6 +254,9 @@ class BasicModalModel {
   using ContactMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
                                       static_cast<int>(kContactRows), static_cast<int>(kContactRows)>;
   ContactCache* contact_cache_ = nullptr;
+  // The stored residual compliance is symmetric to the bit (checked at create()): a block's
+  // transposed orientation then reads the same values, and only one orientation is read.
+  bool residual_symmetric_ = false;
   std::uint64_t state_epoch_ = 0;  // counts steps and resets: the free responses' validity
   // The last accepted factorisation and the target nodes (in order) it was built for.
   Eigen::LDLT<ContactMatrix> factorisation_;
