@@ -49,11 +49,17 @@ core::Status PdoMapping::pack(std::span<const std::int64_t> values, can_frame& f
       return {core::StatusCode::invalid_argument, "PDO pack: value does not fit its field"};
     }
   }
-  std::fill(std::begin(frame.data), std::end(frame.data), std::uint8_t{0});
+  // The fields assembled in one little-endian 64-bit payload, written as the frame's 8 bytes
+  // (a byte loop per field at frame.data + offset trips GCC 12's -Wstringop-overflow false
+  // positive once vectorised for x86-64-v3).
+  std::uint64_t payload = 0;
   for (std::size_t i = 0; i < count_; ++i) {
     const PdoField& field = fields_[i];
-    detail::put_le(frame.data + field.byte_offset, field.object.bits / 8U, static_cast<std::uint64_t>(values[i]));
+    const std::uint64_t mask =
+        field.object.bits >= 64U ? ~std::uint64_t{0} : (std::uint64_t{1} << field.object.bits) - 1U;
+    payload |= (static_cast<std::uint64_t>(values[i]) & mask) << (8U * field.byte_offset);
   }
+  detail::put_le(frame.data, sizeof frame.data, payload);
   frame.len = byte_length();
   return core::Status::ok();
 }

@@ -27,9 +27,8 @@ inline constexpr int kMaxContactRows = 3 * static_cast<int>(BasicModalModel<floa
 // keeps the same bound so that both precisions accept and refuse the same contact sets (a
 // comparison of the two then times and measures the same work).
 inline constexpr double kMinPivotRatio = 1e-8;
+inline constexpr std::uint32_t kNoSlot = static_cast<std::uint32_t>(-1);
 
-using ContactMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
-                                    kMaxContactRows, kMaxContactRows>;
 using ContactVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, kMaxContactRows, 1>;
 
 template <typename Scalar>
@@ -197,6 +196,23 @@ core::Expected<BasicModalModel<Scalar>> BasicModalModel<Scalar>::create(
   auto stepped = detail::carve<NodeLoad>(arena, kMaxLoadedNodes, "modal model stepped loads");
   if (!stepped) return std::move(stepped).error();
   model.stepped_loads_ = stepped.value();
+  auto cache = arena.create_object<ContactCache>("modal model contact cache");
+  if (!cache) return core::make_error("modal model: arena exhausted: " + cache.error().message);
+  model.contact_cache_ = cache.value();
+  model.contact_cache_->slot_count = 0;
+  model.residual_symmetric_ = true;
+  const std::size_t residual_rows = 3 * s;
+  for (std::size_t row = 0;
+       row < residual_rows && !data.residual_compliance.empty() && model.residual_symmetric_;
+       ++row) {
+    for (std::size_t column = row + 1; column < residual_rows; ++column) {
+      if (data.residual_compliance[row * residual_rows + column] !=
+          data.residual_compliance[column * residual_rows + row]) {
+        model.residual_symmetric_ = false;
+        break;
+      }
+    }
+  }
 
   // Newmark constants per mode (METHODS.md §1, Appendix B corrected), in double.
   const double dt = settings.time_step_s;
@@ -220,6 +236,8 @@ void BasicModalModel<Scalar>::reset() noexcept {
   }
   pending_count_ = 0;
   stepped_count_ = 0;
+  projected_count_ = 0;
+  ++state_epoch_;  // the free responses cached by the contact solve belong to the old state
 }
 
 template <typename Scalar>
@@ -254,6 +272,8 @@ core::Status BasicModalModel<Scalar>::add_force(std::uint32_t node,
     }
     slot = pending_count_++;
     pending_loads_[slot] = NodeLoad{node, surface, {0.0, 0.0, 0.0}};
+  } else if (slot < projected_count_) {
+    projected_count_ = 0;  // a projected load changes: project them all again, in order
   }
   for (int axis = 0; axis < 3; ++axis) pending_loads_[slot].force_n[axis] += force_n[axis];
   return core::Status::ok();
@@ -262,13 +282,16 @@ core::Status BasicModalModel<Scalar>::add_force(std::uint32_t node,
 template <typename Scalar>
 void BasicModalModel<Scalar>::clear_forces() noexcept {
   pending_count_ = 0;
+  projected_count_ = 0;
 }
 
 template <typename Scalar>
 void BasicModalModel<Scalar>::project_pending_forces() noexcept {
   const std::size_t r = active_modes_;
-  for (std::size_t i = 0; i < r; ++i) modal_force_[i] = 0.0;
-  for (std::size_t l = 0; l < pending_count_; ++l) {
+  if (projected_count_ == 0) {
+    for (std::size_t i = 0; i < r; ++i) modal_force_[i] = 0.0;
+  }
+  for (std::size_t l = projected_count_; l < pending_count_; ++l) {
     const NodeLoad& load = pending_loads_[l];
     for (int axis = 0; axis < 3; ++axis) {
       const double force = load.force_n[axis];
@@ -277,6 +300,7 @@ void BasicModalModel<Scalar>::project_pending_forces() noexcept {
       for (std::size_t i = 0; i < r; ++i) modal_force_[i] += static_cast<double>(row[i]) * force;
     }
   }
+  projected_count_ = pending_count_;
 }
 
 // Average-acceleration Newmark (γ = 1/2, β = 1/4) for ẍ + α ẋ + ω² x = f, per mode:
@@ -311,6 +335,7 @@ core::Status BasicModalModel<Scalar>::step() noexcept {
   }
   for (std::size_t l = 0; l < pending_count_; ++l) stepped_loads_[l] = pending_loads_[l];
   stepped_count_ = pending_count_;
+  ++state_epoch_;
   return core::Status::ok();
 }
 
@@ -377,6 +402,136 @@ typename BasicModalModel<Scalar>::Vector3 BasicModalModel<Scalar>::rest_position
   return {rest_positions_[base], rest_positions_[base + 1], rest_positions_[base + 2]};
 }
 
+// The nine sums run side by side over the modes (nine independent dependency chains instead of
+// one at a time: the sums are latency-bound), each in its own mode order, so every entry is
+// the same sequence of roundings as a sum computed alone.
+template <typename Scalar>
+void BasicModalModel<Scalar>::modal_compliance_block(std::uint32_t node_a, std::uint32_t node_b,
+                                                     double (&block)[3][3]) const noexcept {
+  const Scalar* a0 = shape_row(node_a, 0);
+  const Scalar* a1 = shape_row(node_a, 1);
+  const Scalar* a2 = shape_row(node_a, 2);
+  const Scalar* b0 = shape_row(node_b, 0);
+  const Scalar* b1 = shape_row(node_b, 1);
+  const Scalar* b2 = shape_row(node_b, 2);
+  double s00 = 0.0, s01 = 0.0, s02 = 0.0, s10 = 0.0, s11 = 0.0, s12 = 0.0, s20 = 0.0, s21 = 0.0,
+         s22 = 0.0;
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    const double k = inverse_k_hat_[i];
+    const auto x0 = static_cast<double>(a0[i]);
+    const auto x1 = static_cast<double>(a1[i]);
+    const auto x2 = static_cast<double>(a2[i]);
+    const auto y0 = static_cast<double>(b0[i]);
+    const auto y1 = static_cast<double>(b1[i]);
+    const auto y2 = static_cast<double>(b2[i]);
+    s00 += x0 * y0 * k;
+    s01 += x0 * y1 * k;
+    s02 += x0 * y2 * k;
+    s10 += x1 * y0 * k;
+    s11 += x1 * y1 * k;
+    s12 += x1 * y2 * k;
+    s20 += x2 * y0 * k;
+    s21 += x2 * y1 * k;
+    s22 += x2 * y2 * k;
+  }
+  block[0][0] = s00;
+  block[0][1] = s01;
+  block[0][2] = s02;
+  block[1][0] = s10;
+  block[1][1] = s11;
+  block[1][2] = s12;
+  block[2][0] = s20;
+  block[2][1] = s21;
+  block[2][2] = s22;
+}
+
+// The blocks of two cached nodes (a ≠ b: both orientations; a = b: the diagonal block, its
+// upper triangle computed and mirrored, as a solve from scratch does).
+template <typename Scalar>
+void BasicModalModel<Scalar>::fill_cache_blocks(std::uint32_t slot_a,
+                                                std::uint32_t slot_b) noexcept {
+  ContactCache& cache = *contact_cache_;
+  const std::uint32_t node_a = cache.nodes[slot_a];
+  const std::uint32_t node_b = cache.nodes[slot_b];
+  const auto entry = [&cache](std::uint32_t slot_row, int axis_row, std::uint32_t slot_column,
+                              int axis_column) -> double& {
+    return cache.compliance[(3 * static_cast<std::size_t>(slot_row) +
+                             static_cast<std::size_t>(axis_row)) *
+                                kContactRows +
+                            3 * static_cast<std::size_t>(slot_column) +
+                            static_cast<std::size_t>(axis_column)];
+  };
+  double block[3][3];
+  modal_compliance_block(node_a, node_b, block);
+  for (int axis_a = 0; axis_a < 3; ++axis_a) {
+    for (int axis_b = (slot_a == slot_b ? axis_a : 0); axis_b < 3; ++axis_b) {
+      const double modal = block[axis_a][axis_b];
+      double value = modal;
+      if (static_correction_) value += residual_entry(node_a, axis_a, node_b, axis_b);
+      entry(slot_a, axis_a, slot_b, axis_b) = value;
+      if (slot_a == slot_b) {
+        entry(slot_b, axis_b, slot_a, axis_a) = value;
+        continue;
+      }
+      // The transposed entry: the same modal sum (products commute, summed in the same
+      // order); the residual compliance read in its own orientation, as a solve with node b
+      // first reads it.
+      double transposed = modal;
+      if (static_correction_) {
+        transposed = residual_symmetric_ ? value
+                                         : transposed + residual_entry(node_b, axis_b, node_a, axis_a);
+      }
+      entry(slot_b, axis_b, slot_a, axis_a) = transposed;
+    }
+  }
+  cache.pair_valid[slot_a * kMaxContacts + slot_b] = true;
+  cache.pair_valid[slot_b * kMaxContacts + slot_a] = true;
+}
+
+template <typename Scalar>
+void BasicModalModel<Scalar>::gather_contact_slots(
+    std::span<const BasicImposedDisplacement<Scalar>> targets,
+    std::span<std::uint32_t> slot_of) noexcept {
+  ContactCache& cache = *contact_cache_;
+  bool used[kMaxContacts] = {};
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    slot_of[k] = detail::kNoSlot;
+    for (std::uint32_t slot = 0; slot < cache.slot_count; ++slot) {
+      if (cache.nodes[slot] == targets[k].node) {
+        slot_of[k] = slot;
+        used[slot] = true;
+        break;
+      }
+    }
+  }
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    if (slot_of[k] != detail::kNoSlot) continue;
+    // A free slot, else one no target uses (there is one: at most kMaxContacts targets, and
+    // this one is not cached).
+    std::uint32_t slot = 0;
+    if (cache.slot_count < kMaxContacts) {
+      slot = cache.slot_count++;
+    } else {
+      while (used[slot]) ++slot;
+    }
+    used[slot] = true;
+    cache.nodes[slot] = targets[k].node;
+    cache.response_epoch[slot] = 0;
+    for (std::size_t other = 0; other < kMaxContacts; ++other) {
+      cache.pair_valid[slot * kMaxContacts + other] = false;
+      cache.pair_valid[other * kMaxContacts + slot] = false;
+    }
+    slot_of[k] = slot;
+  }
+  // Only the blocks this solve needs (pairs of its targets) are computed.
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    for (std::size_t l = k; l < targets.size(); ++l) {
+      if (!cache.pair_valid[slot_of[k] * kMaxContacts + slot_of[l]])
+        fill_cache_blocks(slot_of[k], slot_of[l]);
+    }
+  }
+}
+
 template <typename Scalar>
 core::Status BasicModalModel<Scalar>::solve_imposed(
     std::span<const BasicImposedDisplacement<Scalar>> targets,
@@ -417,53 +572,90 @@ core::Status BasicModalModel<Scalar>::solve_imposed(
             "modal model: fewer active modes than imposed components (enable static correction)"};
   }
 
-  // Next-step modal displacement without the new forces: x⁺₀ = (Φᵀ F + a0 x + a2 v + a)/k̂.
+  // Next-step modal displacement without the new forces: x⁺₀ = (Φᵀ F + a0 x + a2 v + a)/k̂,
+  // needed only for a node whose free response this step is not cached yet.
   project_pending_forces();
-  for (std::size_t i = 0; i < active_modes_; ++i) {
-    predicted_[i] = (modal_force_[i] + a0_[i] * x_[i] + a2_[i] * v_[i] + a_[i]) * inverse_k_hat_[i];
-  }
+  std::array<std::uint32_t, kMaxContacts> slot_of{};
+  gather_contact_slots(targets, slot_of);
+  ContactCache& cache = *contact_cache_;
+  // A free response is cached only when no load is applied (the usual case at the first solve
+  // of a step, and after a release's clear_forces()): with loads, it depends on them.
+  const bool unloaded = pending_count_ == 0;
+  bool predicted_ready = false;
   const std::span<const NodeLoad> pending{pending_loads_.data(), pending_count_};
   const auto rows = static_cast<Eigen::Index>(3 * c);
-  detail::ContactMatrix compliance(rows, rows);
   detail::ContactVector rhs(rows);
   for (std::size_t k = 0; k < c; ++k) {
     const std::uint32_t node_k = targets[k].node;
+    const std::uint32_t slot = slot_of[k];
+    double* free_response = cache.free_response + 3 * static_cast<std::size_t>(slot);
+    if (!unloaded || cache.response_epoch[slot] != state_epoch_) {
+      if (!predicted_ready) {
+        for (std::size_t i = 0; i < active_modes_; ++i) {
+          predicted_[i] =
+              (modal_force_[i] + a0_[i] * x_[i] + a2_[i] * v_[i] + a_[i]) * inverse_k_hat_[i];
+        }
+        predicted_ready = true;
+      }
+      // Three sums side by side, each in mode order (as one computed alone).
+      const Scalar* shape_x = shape_row(node_k, 0);
+      const Scalar* shape_y = shape_row(node_k, 1);
+      const Scalar* shape_z = shape_row(node_k, 2);
+      double sum_x = 0.0, sum_y = 0.0, sum_z = 0.0;
+      for (std::size_t i = 0; i < active_modes_; ++i) {
+        sum_x += static_cast<double>(shape_x[i]) * predicted_[i];
+        sum_y += static_cast<double>(shape_y[i]) * predicted_[i];
+        sum_z += static_cast<double>(shape_z[i]) * predicted_[i];
+      }
+      free_response[0] = sum_x;
+      free_response[1] = sum_y;
+      free_response[2] = sum_z;
+      cache.response_epoch[slot] = unloaded ? state_epoch_ : 0;
+    }
     const Eigen::Vector3d static_part = static_response(node_k, pending);
     for (int axis_k = 0; axis_k < 3; ++axis_k) {
       const Eigen::Index row = static_cast<Eigen::Index>(3 * k) + axis_k;
-      const Scalar* shape_k = shape_row(node_k, axis_k);
-      double free_response = 0.0;
-      for (std::size_t i = 0; i < active_modes_; ++i) {
-        free_response += static_cast<double>(shape_k[i]) * predicted_[i];
-      }
-      rhs[row] = static_cast<double>(targets[k].displacement_m[axis_k]) - free_response -
+      rhs[row] = static_cast<double>(targets[k].displacement_m[axis_k]) - free_response[axis_k] -
                  static_part[axis_k];
-      // Upper triangle of Φ_K diag(1/k̂) Φ_Kᵀ + R_KK, mirrored below.
-      for (std::size_t l = k; l < c; ++l) {
-        const std::uint32_t node_l = targets[l].node;
-        for (int axis_l = (l == k ? axis_k : 0); axis_l < 3; ++axis_l) {
-          const Eigen::Index column = static_cast<Eigen::Index>(3 * l) + axis_l;
-          const Scalar* shape_l = shape_row(node_l, axis_l);
-          double value = 0.0;
-          for (std::size_t i = 0; i < active_modes_; ++i) {
-            value += static_cast<double>(shape_k[i]) * static_cast<double>(shape_l[i]) *
-                     inverse_k_hat_[i];
+    }
+  }
+  // The same target nodes in the same order as the last accepted solve: the same matrix, so
+  // its factorisation stands. Otherwise the upper triangle of Φ_K diag(1/k̂) Φ_Kᵀ + R_KK is
+  // gathered from the cache (row node first, as a cold solve computes it), mirrored below.
+  bool same_nodes = factorised_count_ == c;
+  for (std::size_t k = 0; same_nodes && k < c; ++k)
+    same_nodes = factorised_nodes_[k] == targets[k].node;
+  if (!same_nodes) {
+    factorised_count_ = 0;
+    ContactMatrix compliance(rows, rows);
+    for (std::size_t k = 0; k < c; ++k) {
+      const std::size_t cache_row = 3 * static_cast<std::size_t>(slot_of[k]);
+      for (int axis_k = 0; axis_k < 3; ++axis_k) {
+        const Eigen::Index row = static_cast<Eigen::Index>(3 * k) + axis_k;
+        const double* cached =
+            cache.compliance + (cache_row + static_cast<std::size_t>(axis_k)) * kContactRows;
+        for (std::size_t l = k; l < c; ++l) {
+          const std::size_t cache_column = 3 * static_cast<std::size_t>(slot_of[l]);
+          for (int axis_l = (l == k ? axis_k : 0); axis_l < 3; ++axis_l) {
+            const Eigen::Index column = static_cast<Eigen::Index>(3 * l) + axis_l;
+            const double value = cached[cache_column + static_cast<std::size_t>(axis_l)];
+            compliance(row, column) = value;
+            compliance(column, row) = value;
           }
-          if (static_correction_) value += residual_entry(node_k, axis_k, node_l, axis_l);
-          compliance(row, column) = value;
-          compliance(column, row) = value;
         }
       }
     }
+    factorisation_.compute(compliance);
+    const detail::ContactVector pivots = factorisation_.vectorD();
+    if (factorisation_.info() != Eigen::Success ||
+        !(pivots.minCoeff() > detail::kMinPivotRatio * pivots.maxCoeff())) {
+      return {core::StatusCode::numeric_error,
+              "modal model: contact compliance singular (fixed node or dependent contacts)"};
+    }
+    for (std::size_t k = 0; k < c; ++k) factorised_nodes_[k] = targets[k].node;
+    factorised_count_ = c;
   }
-  const Eigen::LDLT<detail::ContactMatrix> factorisation(compliance);
-  const detail::ContactVector pivots = factorisation.vectorD();
-  if (factorisation.info() != Eigen::Success ||
-      !(pivots.minCoeff() > detail::kMinPivotRatio * pivots.maxCoeff())) {
-    return {core::StatusCode::numeric_error,
-            "modal model: contact compliance singular (fixed node or dependent contacts)"};
-  }
-  const detail::ContactVector forces = factorisation.solve(rhs);
+  const detail::ContactVector forces = factorisation_.solve(rhs);
   // Forces are returned as Scalar: one that would overflow it is refused like a non-finite one.
   constexpr double kScalarMax = static_cast<double>(std::numeric_limits<Scalar>::max());
   for (Eigen::Index j = 0; j < rows; ++j) {

@@ -36,6 +36,7 @@
 #include <span>
 #include <type_traits>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 #include "trainer/core/arena.hpp"
@@ -114,6 +115,14 @@ class BasicModalModel {
   // are added to the applied forces, the caller then calls step(). Solves the 3c × 3c system
   // (c ≤ kMaxContacts) of the contact compliance of the next step
   //   u_k(F) = Φ_k diag(1/k̂) (Φᵀ F + a0 x + a2 v + a) [+ R_kl F_l].
+  // Work per call: the compliance block of two nodes is a constant of the model, so it is
+  // computed once when a node enters the contact cache (kMaxContacts nodes, the most recently
+  // contacted) and gathered from there afterwards; the factorisation is reused while the
+  // target nodes (and their order) stay the same; the free response of a node (its next-step
+  // displacement without contact forces) is kept for the step, so a re-solve after a release
+  // (clear_forces() and fewer targets, in the same step) only gathers the kept rows and
+  // factorises them. Every value is computed by the same operations as a solve from scratch:
+  // the forces are bit-identical to a cold solve (modal_model_test checks it).
   // Refuses (nothing applied): more than kMaxContacts targets, a repeated or unknown node,
   // forces_out shorter than targets, non-finite targets, a non-surface node with static
   // correction, fewer active modes than 3c without static correction, and a singular contact
@@ -180,8 +189,20 @@ class BasicModalModel {
   Eigen::Vector3d static_response(std::uint32_t node, std::span<const NodeLoad> loads) const noexcept;
   double residual_entry(std::uint32_t node_k, int axis_k, std::uint32_t node_l,
                         int axis_l) const noexcept;
-  // Modal force Φᵀ F of the pending loads into modal_force_.
+  // Modal force Φᵀ F of the pending loads into modal_force_, incrementally: loads already
+  // projected since the last clear (and unchanged) are not projected again, so the contact
+  // solve's projection of the applied loads is reused by step(). The sum runs over the loads
+  // in the same order either way (bit-identical to projecting all of them).
   void project_pending_forces() noexcept;
+  // Puts every target node in the contact cache (slot_of[k]: its slot), computing the
+  // compliance blocks of the nodes that enter it.
+  void gather_contact_slots(std::span<const BasicImposedDisplacement<Scalar>> targets,
+                            std::span<std::uint32_t> slot_of) noexcept;
+  // Modal part of the compliance of node_a (row axis) to a unit force at node_b (column axis)
+  // in the next step: Σ_i φ_a,i φ_b,i / k̂_i (symmetric to the bit: products commute).
+  void modal_compliance_block(std::uint32_t node_a, std::uint32_t node_b,
+                              double (&block)[3][3]) const noexcept;
+  void fill_cache_blocks(std::uint32_t slot_a, std::uint32_t slot_b) noexcept;
   std::size_t find_pending(std::uint32_t node) const noexcept;
   core::Status add_force(std::uint32_t node, const Eigen::Vector3d& force_n) noexcept;
 
@@ -214,6 +235,33 @@ class BasicModalModel {
   std::span<NodeLoad> stepped_loads_;  // the forces of the last step (for the static part)
   std::size_t pending_count_ = 0;
   std::size_t stepped_count_ = 0;
+  std::size_t projected_count_ = 0;  // pending loads [0, projected_count_) are in modal_force_
+
+  // The contact cache (carved from the arena; plain arrays): up to kMaxContacts nodes in
+  // slots, the compliance blocks of the pairs of them solved together so far (pair_valid) —
+  // entry (3a + i, 3b + j) is the compliance of node a axis i to a force at node b axis j,
+  // both orientations stored since the residual compliance is read row-first — and each
+  // node's free response with the state epoch it belongs to (0: none).
+  static constexpr std::size_t kContactRows = 3 * kMaxContacts;
+  struct ContactCache {
+    std::uint32_t slot_count;
+    std::uint32_t nodes[kMaxContacts];
+    std::uint64_t response_epoch[kMaxContacts];
+    double free_response[kContactRows];
+    double compliance[kContactRows * kContactRows];
+    bool pair_valid[kMaxContacts * kMaxContacts];
+  };
+  using ContactMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                                      static_cast<int>(kContactRows), static_cast<int>(kContactRows)>;
+  ContactCache* contact_cache_ = nullptr;
+  // The stored residual compliance is symmetric to the bit (checked at create()): a block's
+  // transposed orientation then reads the same values, and only one orientation is read.
+  bool residual_symmetric_ = false;
+  std::uint64_t state_epoch_ = 0;  // counts steps and resets: the free responses' validity
+  // The last accepted factorisation and the target nodes (in order) it was built for.
+  Eigen::LDLT<ContactMatrix> factorisation_;
+  std::uint32_t factorised_nodes_[kMaxContacts] = {};
+  std::size_t factorised_count_ = 0;
 };
 
 // Both instantiations live in modal_model.cpp.
