@@ -79,12 +79,21 @@ bool triangle_is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) noexcep
 
 Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept {
   if (triangle_is_degenerate(a, b, c)) return Vec3::Zero();
+  return nondegenerate_triangle_normal(a, b, c);
+}
+
+Vec3 nondegenerate_triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept {
   return (b - a).cross(c - a).normalized();
 }
 
 TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
                                         const Vec3& c) noexcept {
   if (triangle_is_degenerate(a, b, c)) return closest_point_on_degenerate(p, a, b, c);
+  return closest_point_on_nondegenerate_triangle(p, a, b, c);
+}
+
+TrianglePoint closest_point_on_nondegenerate_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
+                                                      const Vec3& c) noexcept {
   // Ericson §5.1.5: classify p into the Voronoi regions of the vertices, then the edges,
   // then the face, with dot products only.
   const Vec3 ab = b - a;
@@ -161,10 +170,16 @@ SphereTriangleContact sphere_triangle_contact(const Vec3& centre, float radius_m
 
 SegmentTriangleHit intersect_segment_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
                                               const Vec3& b, const Vec3& c) noexcept {
+  if (triangle_is_degenerate(a, b, c)) return SegmentTriangleHit{};
+  return intersect_segment_nondegenerate_triangle(p0, p1, a, b, c);
+}
+
+SegmentTriangleHit intersect_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
+                                                            const Vec3& b, const Vec3& c) noexcept {
   SegmentTriangleHit result;
   const Vec3 direction = p1 - p0;
   const float length_squared = direction.squaredNorm();
-  if (!(length_squared > 0.0F) || triangle_is_degenerate(a, b, c)) return result;
+  if (!(length_squared > 0.0F)) return result;
   const Vec3 e1 = b - a;
   const Vec3 e2 = c - a;
   const Vec3 h = direction.cross(e2);
@@ -260,11 +275,15 @@ SegmentSegmentClosest closest_points_segments(const Vec3& p0, const Vec3& p1, co
   return result;
 }
 
-SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec3& p1,
-                                                       const Vec3& a, const Vec3& b,
-                                                       const Vec3& c) noexcept {
+namespace {
+
+// The closest pair, the triangle's degeneracy decided once by the caller (the three calls on
+// the triangle then take the same branches as they would have deciding it themselves).
+SegmentTriangleClosest segment_triangle_closest(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
+                                                const Vec3& c, bool degenerate) noexcept {
   SegmentTriangleClosest best;
-  const SegmentTriangleHit hit = intersect_segment_triangle(p0, p1, a, b, c);
+  const SegmentTriangleHit hit =
+      degenerate ? SegmentTriangleHit{} : intersect_segment_nondegenerate_triangle(p0, p1, a, b, c);
   if (hit.hit) {
     best.distance_m = 0.0F;
     best.segment_t = hit.t;
@@ -274,7 +293,8 @@ SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec
   }
   float best_distance_squared = INFINITY;
   const auto consider_endpoint = [&](const Vec3& endpoint, float t) {
-    const TrianglePoint on_triangle = closest_point_on_triangle(endpoint, a, b, c);
+    const TrianglePoint on_triangle = degenerate ? closest_point_on_degenerate(endpoint, a, b, c)
+                                                 : closest_point_on_nondegenerate_triangle(endpoint, a, b, c);
     const float distance_squared = (on_triangle.point - endpoint).squaredNorm();
     if (distance_squared < best_distance_squared) {
       best_distance_squared = distance_squared;
@@ -301,6 +321,20 @@ SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec
   }
   best.distance_m = std::sqrt(best_distance_squared);
   return best;
+}
+
+}  // namespace
+
+SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec3& p1,
+                                                       const Vec3& a, const Vec3& b,
+                                                       const Vec3& c) noexcept {
+  return segment_triangle_closest(p0, p1, a, b, c, triangle_is_degenerate(a, b, c));
+}
+
+SegmentTriangleClosest closest_points_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1,
+                                                                     const Vec3& a, const Vec3& b,
+                                                                     const Vec3& c) noexcept {
+  return segment_triangle_closest(p0, p1, a, b, c, false);
 }
 
 }  // namespace trainer::model

@@ -43,6 +43,11 @@ inline constexpr float kBarycentricTolerance = 1e-6F;
 Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
 bool triangle_is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
 
+// The `_nondegenerate_` variants below are the functions of the same name without their
+// triangle_is_degenerate test, bit for bit, for a caller that has already made it (a contact
+// loop testing the same triangle several times): precondition !triangle_is_degenerate(a, b, c).
+Vec3 nondegenerate_triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
+
 struct TrianglePoint {
   Vec3 point = Vec3::Zero();
   Vec3 barycentric = Vec3(1.0F, 0.0F, 0.0F);  // weights of a, b, c; sum 1, each in [0, 1]
@@ -53,6 +58,8 @@ struct TrianglePoint {
 // of its three edges (a point or a segment), so the answer is still exact.
 TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
                                         const Vec3& c) noexcept;
+TrianglePoint closest_point_on_nondegenerate_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
+                                                      const Vec3& c) noexcept;
 
 struct SphereTriangleContact {
   bool in_contact = false;
@@ -89,6 +96,8 @@ struct SegmentTriangleHit {
 // the plane: use closest_points_segment_triangle for that), t outside [0, 1].
 SegmentTriangleHit intersect_segment_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
                                               const Vec3& b, const Vec3& c) noexcept;
+SegmentTriangleHit intersect_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
+                                                            const Vec3& b, const Vec3& c) noexcept;
 
 struct SegmentSegmentClosest {
   float distance_m = 0.0F;
@@ -118,5 +127,8 @@ struct SegmentTriangleClosest {
 SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec3& p1,
                                                        const Vec3& a, const Vec3& b,
                                                        const Vec3& c) noexcept;
+SegmentTriangleClosest closest_points_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1,
+                                                                     const Vec3& a, const Vec3& b,
+                                                                     const Vec3& c) noexcept;
 
 }  // namespace trainer::model
