@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace trainer::model {
 namespace {
@@ -80,6 +81,31 @@ bool triangle_is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) noexcep
 Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept {
   if (triangle_is_degenerate(a, b, c)) return Vec3::Zero();
   return nondegenerate_triangle_normal(a, b, c);
+}
+
+bool segment_beyond_triangle_plane(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const Vec3& c,
+                                   float distance_m) noexcept {
+  if (!(distance_m >= 0.0F)) return false;
+  const Vec3 ab = b - a;
+  const Vec3 ac = c - a;
+  const Vec3 normal = ab.cross(ac);
+  const Vec3 to0 = p0 - a;
+  const Vec3 to1 = p1 - a;
+  const float h0 = normal.dot(to0);
+  const float h1 = normal.dot(to1);
+  if (!(h0 * h1 > 0.0F)) return false;  // the segment meets the plane (or NaN, or underflow)
+  const float nearer = std::min(std::abs(h0), std::abs(h1));
+  // Rounding, bounded with L1 norms (≥ the Euclidean ones): the computed normal is off by at
+  // most ~5 ε |ab|₁ |ac|₁ and each height by ~ε |to|₁ (5 |ab|₁ |ac|₁ + 5 |normal|₁); the
+  // factor 64 ε leaves a wide margin. With them the exact heights share the computed sign and
+  // |H| / |N| > distance_m for both ends, so every point of the segment is that far from the
+  // plane.
+  constexpr float kEps = std::numeric_limits<float>::epsilon();
+  const float spread = ab.cwiseAbs().sum() * ac.cwiseAbs().sum();
+  const float reach = std::max(to0.cwiseAbs().sum(), to1.cwiseAbs().sum());
+  const float normal_error = 8.0F * kEps * spread;
+  const float height_error = 64.0F * kEps * reach * (spread + normal.cwiseAbs().sum());
+  return nearer > distance_m * (normal.norm() + normal_error) + height_error;
 }
 
 Vec3 nondegenerate_triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept {

@@ -43,6 +43,16 @@ inline constexpr float kBarycentricTolerance = 1e-6F;
 Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
 bool triangle_is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
 
+// Conservative pre-test of a contact loop (cheaper than the closest points): true only when
+// the whole closed segment p0–p1 is certainly farther than distance_m from the triangle's
+// plane, hence from the triangle, float rounding of the test included (a margin of a few
+// dozen ε relative to the triangle's and the segment's extents). False whenever the segment
+// meets or nearly meets the plane, for a degenerate triangle (no plane: the normal's rounding
+// swamps it), a NaN, or distance_m < 0. Never true for a distance_m at or above the distance
+// closest_points_segment_triangle computes (tested on random and degenerate input).
+bool segment_beyond_triangle_plane(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const Vec3& c,
+                                   float distance_m) noexcept;
+
 // The `_nondegenerate_` variants below are the functions of the same name without their
 // triangle_is_degenerate test, bit for bit, for a caller that has already made it (a contact
 // loop testing the same triangle several times): precondition !triangle_is_degenerate(a, b, c).
