@@ -267,8 +267,12 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
     const float limit = count > 0 ? std::min(reach_m, candidates_[best].closest.distance_m) : reach_m;
     if (lower_bound > limit + tie_m) continue;
     if (triangle_is_degenerate(a, b, c)) continue;
-    // Second bound: the segment's distance to the triangle's plane (when it lies on one side).
-    if (segment_beyond_triangle_plane(capsule.start_m, capsule.end_m, a, b, c, limit + tie_m)) continue;
+    // Second bound: the segment's distance to the triangle's plane (when it lies on one side),
+    // against the reach only: what it skips the exact test would reject (it is never true at
+    // the distance that test computes), so the candidate list is the same as without it. With
+    // the best-so-far limit it skipped more (3 % faster in the cbd run) but could then drop a
+    // triangle within reach, which only the tie analysis above keeps harmless.
+    if (segment_beyond_triangle_plane(capsule.start_m, capsule.end_m, a, b, c, reach_m + tie_m)) continue;
     candidate.closest = closest_points_segment_nondegenerate_triangle(capsule.start_m, capsule.end_m, a, b, c);
     if (!(candidate.closest.distance_m < reach_m)) continue;
     candidate.triangle = candidate_ids_[k];
