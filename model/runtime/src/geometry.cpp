@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace trainer::model {
 namespace {
@@ -79,12 +80,46 @@ bool triangle_is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) noexcep
 
 Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept {
   if (triangle_is_degenerate(a, b, c)) return Vec3::Zero();
+  return nondegenerate_triangle_normal(a, b, c);
+}
+
+bool segment_beyond_triangle_plane(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const Vec3& c,
+                                   float distance_m) noexcept {
+  if (!(distance_m >= 0.0F)) return false;
+  const Vec3 ab = b - a;
+  const Vec3 ac = c - a;
+  const Vec3 normal = ab.cross(ac);
+  const Vec3 to0 = p0 - a;
+  const Vec3 to1 = p1 - a;
+  const float h0 = normal.dot(to0);
+  const float h1 = normal.dot(to1);
+  if (!(h0 * h1 > 0.0F)) return false;  // the segment meets the plane (or NaN, or underflow)
+  const float nearer = std::min(std::abs(h0), std::abs(h1));
+  // Rounding, bounded with L1 norms (≥ the Euclidean ones): the computed normal is off by at
+  // most ~5 ε |ab|₁ |ac|₁ and each height by ~ε |to|₁ (5 |ab|₁ |ac|₁ + 5 |normal|₁); the
+  // factor 64 ε leaves a wide margin. With them the exact heights share the computed sign and
+  // |H| / |N| > distance_m for both ends, so every point of the segment is that far from the
+  // plane.
+  constexpr float kEps = std::numeric_limits<float>::epsilon();
+  const float spread = ab.cwiseAbs().sum() * ac.cwiseAbs().sum();
+  const float reach = std::max(to0.cwiseAbs().sum(), to1.cwiseAbs().sum());
+  const float normal_error = 8.0F * kEps * spread;
+  const float height_error = 64.0F * kEps * reach * (spread + normal.cwiseAbs().sum());
+  return nearer > distance_m * (normal.norm() + normal_error) + height_error;
+}
+
+Vec3 nondegenerate_triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept {
   return (b - a).cross(c - a).normalized();
 }
 
 TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
                                         const Vec3& c) noexcept {
   if (triangle_is_degenerate(a, b, c)) return closest_point_on_degenerate(p, a, b, c);
+  return closest_point_on_nondegenerate_triangle(p, a, b, c);
+}
+
+TrianglePoint closest_point_on_nondegenerate_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
+                                                      const Vec3& c) noexcept {
   // Ericson §5.1.5: classify p into the Voronoi regions of the vertices, then the edges,
   // then the face, with dot products only.
   const Vec3 ab = b - a;
@@ -161,10 +196,16 @@ SphereTriangleContact sphere_triangle_contact(const Vec3& centre, float radius_m
 
 SegmentTriangleHit intersect_segment_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
                                               const Vec3& b, const Vec3& c) noexcept {
+  if (triangle_is_degenerate(a, b, c)) return SegmentTriangleHit{};
+  return intersect_segment_nondegenerate_triangle(p0, p1, a, b, c);
+}
+
+SegmentTriangleHit intersect_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
+                                                            const Vec3& b, const Vec3& c) noexcept {
   SegmentTriangleHit result;
   const Vec3 direction = p1 - p0;
   const float length_squared = direction.squaredNorm();
-  if (!(length_squared > 0.0F) || triangle_is_degenerate(a, b, c)) return result;
+  if (!(length_squared > 0.0F)) return result;
   const Vec3 e1 = b - a;
   const Vec3 e2 = c - a;
   const Vec3 h = direction.cross(e2);
@@ -260,11 +301,15 @@ SegmentSegmentClosest closest_points_segments(const Vec3& p0, const Vec3& p1, co
   return result;
 }
 
-SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec3& p1,
-                                                       const Vec3& a, const Vec3& b,
-                                                       const Vec3& c) noexcept {
+namespace {
+
+// The closest pair, the triangle's degeneracy decided once by the caller (the three calls on
+// the triangle then take the same branches as they would have deciding it themselves).
+SegmentTriangleClosest segment_triangle_closest(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b,
+                                                const Vec3& c, bool degenerate) noexcept {
   SegmentTriangleClosest best;
-  const SegmentTriangleHit hit = intersect_segment_triangle(p0, p1, a, b, c);
+  const SegmentTriangleHit hit =
+      degenerate ? SegmentTriangleHit{} : intersect_segment_nondegenerate_triangle(p0, p1, a, b, c);
   if (hit.hit) {
     best.distance_m = 0.0F;
     best.segment_t = hit.t;
@@ -274,7 +319,8 @@ SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec
   }
   float best_distance_squared = INFINITY;
   const auto consider_endpoint = [&](const Vec3& endpoint, float t) {
-    const TrianglePoint on_triangle = closest_point_on_triangle(endpoint, a, b, c);
+    const TrianglePoint on_triangle = degenerate ? closest_point_on_degenerate(endpoint, a, b, c)
+                                                 : closest_point_on_nondegenerate_triangle(endpoint, a, b, c);
     const float distance_squared = (on_triangle.point - endpoint).squaredNorm();
     if (distance_squared < best_distance_squared) {
       best_distance_squared = distance_squared;
@@ -301,6 +347,20 @@ SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec
   }
   best.distance_m = std::sqrt(best_distance_squared);
   return best;
+}
+
+}  // namespace
+
+SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec3& p1,
+                                                       const Vec3& a, const Vec3& b,
+                                                       const Vec3& c) noexcept {
+  return segment_triangle_closest(p0, p1, a, b, c, triangle_is_degenerate(a, b, c));
+}
+
+SegmentTriangleClosest closest_points_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1,
+                                                                     const Vec3& a, const Vec3& b,
+                                                                     const Vec3& c) noexcept {
+  return segment_triangle_closest(p0, p1, a, b, c, false);
 }
 
 }  // namespace trainer::model

@@ -187,7 +187,7 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
     const Vec3 b = vertex_position(mesh, candidate.vertices[1]);
     const Vec3 c = vertex_position(mesh, candidate.vertices[2]);
     if (triangle_is_degenerate(a, b, c)) continue;
-    const TrianglePoint closest = closest_point_on_triangle(centre_m, a, b, c);
+    const TrianglePoint closest = closest_point_on_nondegenerate_triangle(centre_m, a, b, c);
     const float distance = (centre_m - closest.point).norm();
     if (!(distance < reach_m)) continue;
     candidate.triangle = candidate_ids_[k];

@@ -43,6 +43,21 @@ inline constexpr float kBarycentricTolerance = 1e-6F;
 Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
 bool triangle_is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
 
+// Conservative pre-test of a contact loop (cheaper than the closest points): true only when
+// the whole closed segment p0–p1 is certainly farther than distance_m from the triangle's
+// plane, hence from the triangle, float rounding of the test included (a margin of a few
+// dozen ε relative to the triangle's and the segment's extents). False whenever the segment
+// meets or nearly meets the plane, for a degenerate triangle (no plane: the normal's rounding
+// swamps it), a NaN, or distance_m < 0. Never true for a distance_m at or above the distance
+// closest_points_segment_triangle computes (tested on random and degenerate input).
+bool segment_beyond_triangle_plane(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const Vec3& c,
+                                   float distance_m) noexcept;
+
+// The `_nondegenerate_` variants below are the functions of the same name without their
+// triangle_is_degenerate test, bit for bit, for a caller that has already made it (a contact
+// loop testing the same triangle several times): precondition !triangle_is_degenerate(a, b, c).
+Vec3 nondegenerate_triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) noexcept;
+
 struct TrianglePoint {
   Vec3 point = Vec3::Zero();
   Vec3 barycentric = Vec3(1.0F, 0.0F, 0.0F);  // weights of a, b, c; sum 1, each in [0, 1]
@@ -53,6 +68,8 @@ struct TrianglePoint {
 // of its three edges (a point or a segment), so the answer is still exact.
 TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
                                         const Vec3& c) noexcept;
+TrianglePoint closest_point_on_nondegenerate_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
+                                                      const Vec3& c) noexcept;
 
 struct SphereTriangleContact {
   bool in_contact = false;
@@ -89,6 +106,8 @@ struct SegmentTriangleHit {
 // the plane: use closest_points_segment_triangle for that), t outside [0, 1].
 SegmentTriangleHit intersect_segment_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
                                               const Vec3& b, const Vec3& c) noexcept;
+SegmentTriangleHit intersect_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1, const Vec3& a,
+                                                            const Vec3& b, const Vec3& c) noexcept;
 
 struct SegmentSegmentClosest {
   float distance_m = 0.0F;
@@ -118,5 +137,8 @@ struct SegmentTriangleClosest {
 SegmentTriangleClosest closest_points_segment_triangle(const Vec3& p0, const Vec3& p1,
                                                        const Vec3& a, const Vec3& b,
                                                        const Vec3& c) noexcept;
+SegmentTriangleClosest closest_points_segment_nondegenerate_triangle(const Vec3& p0, const Vec3& p1,
+                                                                     const Vec3& a, const Vec3& b,
+                                                                     const Vec3& c) noexcept;
 
 }  // namespace trainer::model

@@ -171,11 +171,13 @@ class SegmentSurfaceContact {
     std::uint32_t triangle;
     std::uint32_t vertices[3];
     SegmentTriangleClosest closest;
-    float obliquity;  // sine of the angle between q − p and the triangle's normal
+    float obliquity;  // sine of the angle between q − p and the triangle's normal; < 0 not yet computed
   };
 
   SegmentSurfaceContact() = default;
   static bool better(const Candidate& candidate, const Candidate& current, float tie_m) noexcept;
+  static bool needs_obliquity(const Candidate& candidate, const Candidate& current, float tie_m) noexcept;
+  static void set_obliquity(Candidate& candidate, const TriangleMeshView& mesh) noexcept;
   void clear_outputs() noexcept;
   core::Status segment_contact(const ToolCapsule& capsule, const TriangleMeshView& mesh,
                                std::span<const float> surface_velocities, TriangleBroadPhase& grid) noexcept;
