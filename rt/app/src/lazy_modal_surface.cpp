@@ -81,7 +81,19 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
   }
   lazy.surface_index_ = index.value();
 
+  auto column_norms = arena.allocate_array<double>(std::max<std::size_t>(r, 1), "lazy surface: mode maxima");
+  if (!column_norms) return std::move(column_norms).error();
+  std::fill(column_norms->begin(), column_norms->end(), 0.0);
+  lazy.mode_column_max_ = column_norms.value();
   for (std::size_t node = 0; node < n; ++node) {
+    for (std::size_t i = 0; i < lazy.active_modes_; ++i) {
+      double column = 0.0;
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        const double value = data.mode_shapes[(3 * node + axis) * r + i];
+        column += value * value;
+      }
+      lazy.mode_column_max_[i] = std::max(lazy.mode_column_max_[i], std::sqrt(column));
+    }
     double squared = 0.0;
     for (std::size_t axis = 0; axis < 3; ++axis) {
       const float* row = data.mode_shapes.data() + (3 * node + axis) * r;
@@ -179,12 +191,16 @@ void LazyModalSurface::reconstruct_node(std::uint32_t node, float* out) const no
 }
 
 double LazyModalSurface::motion_bound() const noexcept {
+  // ‖Φ_i Δq‖ ≤ ‖Φ_i‖_F ‖Δq‖₂ and ≤ Σ_j ‖φ_ij‖ |Δq_j|: the smaller of the two maxima.
   double squared = 0.0;
+  double per_mode = 0.0;
   for (std::size_t i = 0; i < active_modes_; ++i) {
     const double d = static_cast<double>(modes_[i]) - static_cast<double>(reference_modes_[i]);
     squared += d * d;
+    per_mode += mode_column_max_[i] * std::abs(d);
   }
-  double bound = max_shape_norm_ * std::sqrt(squared);
+  double bound = std::min(max_shape_norm_ * std::sqrt(squared), per_mode);
+  if (std::isnan(squared) || std::isnan(per_mode)) return std::numeric_limits<double>::quiet_NaN();
   if (!static_correction_) return bound;
   // Σ over the nodes loaded now or at the reference of max_k ‖R_kl‖ ‖ΔF_l‖.
   for (std::size_t k = 0; k < load_count_; ++k) {

@@ -106,6 +106,7 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   bool lazy_allowed_ = true;  // false: static correction over fewer modes than stored
 
   double max_shape_norm_ = 0.0;           // max_i ‖Φ_i‖_F over the active columns
+  std::span<double> mode_column_max_;    // per active mode j: max_i ‖φ_ij‖ (3 rows)
   double max_shape_entry_ = 0.0;          // max |Φ| (rounding margin)
   double max_rest_abs_ = 0.0;             // max |rest coordinate| (rounding margin)
   double max_residual_entry_ = 0.0;       // max |R| (rounding margin)
