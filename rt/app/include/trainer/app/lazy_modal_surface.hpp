@@ -8,9 +8,11 @@
 // refit grown by the slack s (TriangleBvh::refit). Vertex i's displacement is
 //   u_i = Φ_i q + Σ_l R_il F_l   (R_il = 0 off the surface),
 // so since that refit it moved at most
-//   ‖Φ_i‖_F ‖q − q_ref‖₂ + Σ_l max_k ‖R_kl‖_F ‖F_l − F_ref,l‖₂   (+ float rounding, bounded)
-// and while that stays below s, TriangleBvh::refit would itself skip the work: the hierarchy
-// and every query's candidate list are the ones of the full path. Each candidate triangle's
+//   min(max_i ‖Φ_i‖_F ‖Δq‖₂, Σ_j max_i ‖φ_ij‖ |Δq_j|) + Σ_l max_k ‖R_kl‖_F ‖ΔF_l‖₂
+// (+ both reconstructions' float rounding, bounded) from the state of the last full refresh,
+// and while that stays below s minus that refresh's distance from the hierarchy's reference
+// (TriangleBvh::last_deviation_m), TriangleBvh::refit would itself skip the work: the
+// hierarchy and every query's candidate list are the ones of the full path. Each candidate triangle's
 // vertices are computed by the same kernel (reconstruct_node) the full path runs for every
 // node, so the positions the narrow phases read are bit-identical to a full reconstruction.
 //
