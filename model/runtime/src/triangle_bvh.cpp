@@ -183,7 +183,14 @@ core::Status TriangleBvh::refit(std::span<const float> positions_m, float slack_
     ready_ = false;
     return {core::StatusCode::numeric_error, "triangle bvh: non-finite vertex"};
   }
-  if (ready_ && slack_m == slack_m_ && (now - before).abs().maxCoeff() <= slack_m) return core::Status::ok();
+  if (ready_ && slack_m == slack_m_) {
+    const float deviation = (now - before).abs().maxCoeff();
+    if (deviation <= slack_m) {
+      last_deviation_m_ = deviation;
+      return core::Status::ok();
+    }
+  }
+  last_deviation_m_ = 0.0F;
   std::copy(positions_m.begin(), positions_m.end(), reference_.begin());
   slack_m_ = slack_m;
   refit_boxes();

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <limits>
 
+#include "trainer/app/lazy_modal_surface.hpp"
+
 namespace trainer::app {
 
 using Vec3 = Eigen::Vector3f;
@@ -11,6 +13,11 @@ bool ContactSurface::near(const Vec3& world_m) const noexcept {
   const Vec3 local = transform.to_model(world_m);
   return (local.array() >= near_box.min_m.array()).all() &&
          (local.array() <= near_box.max_m.array()).all();
+}
+
+model::TriangleBroadPhase& ContactSurface::broad_phase() noexcept {
+  if (lazy != nullptr) return *lazy;
+  return *grid;
 }
 
 bool ContactSurface::refit_grid() noexcept {
@@ -23,10 +30,12 @@ std::size_t ContactSurface::tip_targets(std::size_t instrument, const Instrument
                                         std::span<model::ImposedDisplacement> out,
                                         std::uint64_t& errors) noexcept {
   model::DisplacementContact& contact = *contacts[instrument];
+  // A held contact reads its triangle without a query: make its vertices this step's.
+  if (lazy != nullptr && contact.in_contact()) lazy->ensure_triangle(contact.triangle());
   const model::TriangleMeshView mesh = view();
   const Vec3 tip = transform.to_model(frame.pose.tip_m);
   const Vec3 previous = frame.has_previous_tip ? transform.to_model(frame.previous_tip_m) : tip;
-  if (!contact.update(mesh, *grid, previous, tip).is_ok()) ++errors;
+  if (!contact.update(mesh, broad_phase(), previous, tip).is_ok()) ++errors;
   return contact.targets(mesh, rest_positions, tip, out);
 }
 

@@ -62,6 +62,11 @@ core::Expected<void> load_modal_model(const config::SceneConfig& scene,
     return core::make_error(" (" + image_name + "): " + added.error().message);
   }
   state.model.emplace(std::move(*modal));
+  if (state.surface.grid) {
+    auto lazy = LazyModalSurface::create(model::modal_model_data(*image), *state.model, arena);
+    if (!lazy) return core::make_error(" (" + image_name + "): " + lazy.error().message);
+    state.lazy.emplace(std::move(lazy).value());
+  }
   ++models.modal_count;
   LoadedModelInfo info = image_model_info(entry, *image, arena.used_bytes() - arena_before);
   info.mode_count = metadata.mode_count;

@@ -44,7 +44,7 @@ bool CatheterStage::add_wall_planes(std::size_t index, std::size_t& plane_count)
     const core::Status found =
         state.walls[m]->compute(state.model_frame_positions.first(positions.size()),
                                 state.model_frame_velocities.first(positions.size()),
-                                detection_radius, wall.view(), {}, *wall.grid, state.wall_out[m]);
+                                detection_radius, wall.view(), {}, wall.broad_phase(), state.wall_out[m]);
     if (!found.is_ok()) ok = false;
     stats.dropped_contacts += state.wall_out[m].dropped_count;
     const float reach = catheter.radius_m() + walls_[m].half_thickness_m;  // to the wall's surface

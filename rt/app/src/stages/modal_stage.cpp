@@ -121,6 +121,15 @@ void ModalStage::refresh_surface(ModalModelState& state) noexcept {
   ContactSurface& surface = state.surface;
   surface.surface_ready = false;
   if (!surface.grid) return;
+  if (state.lazy) {
+    // Lazy: only the vertices the queries return are computed (in the collision sub-stage);
+    // the whole surface and the refit only when the motion bound exceeds the slack.
+    const bool lazy = state.lazy->begin(surface, *state.model);
+    stats_->laps.lap(Substage::modal_reconstruct);
+    if (!lazy) (void)state.lazy->finish_full(surface);
+    stats_->laps.lap(Substage::modal_refit);
+    return;
+  }
   if (!state.model->reconstruct(surface.deformed).is_ok()) return;
   for (std::size_t i = 0; i < surface.deformed.size(); ++i)
     surface.deformed[i] += surface.rest_positions[i];

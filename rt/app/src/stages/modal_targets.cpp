@@ -140,7 +140,7 @@ void gather_segment_targets(ModalModelState& state, std::span<const InstrumentFr
     const float shaft_offset_m = add_clipped_shaft(surface, transform.to_model(pose.shaft_start_m),
                                                    hinge, velocity, capsules, capsule_count);
     model::SegmentSurfaceContact& contact = *state.segments[i];
-    if (!contact.update(std::span(capsules.data(), capsule_count), view, {}, *surface.grid).is_ok())
+    if (!contact.update(std::span(capsules.data(), capsule_count), view, {}, surface.broad_phase()).is_ok())
       ++errors;
     for (const model::SegmentContact& found : contact.contacts()) {
       add_segment_target(state, i, found, shaft_offset_m, out);

@@ -81,6 +81,10 @@ class TriangleBvh final : public TriangleBroadPhase {
   // Since create(): refits that did the work (a coordinate beyond the slack), and calls.
   std::uint64_t refit_count() const noexcept { return refit_count_; }
   std::uint64_t refit_calls() const noexcept { return refit_calls_; }
+  // After a successful refit(): the largest coordinate change between the positions it was
+  // given and the hierarchy's reference (0 when it refitted). LazyModalSurface bounds the
+  // motion from there on and keeps slack − this for it.
+  float last_deviation_m() const noexcept { return last_deviation_m_; }
 
  private:
   struct Node {
@@ -107,6 +111,7 @@ class TriangleBvh final : public TriangleBroadPhase {
   bool ready_ = false;
   std::uint64_t refit_count_ = 0;
   std::uint64_t refit_calls_ = 0;
+  float last_deviation_m_ = 0.0F;
 };
 
 }  // namespace trainer::model

@@ -40,6 +40,8 @@ inline constexpr float kSurfaceMarginM = 0.02F;
 // and nodes, not the grid's rebuild (docs/collision.md measures both).
 inline constexpr float kGridSlackEdges = 0.375F;
 
+class LazyModalSurface;
+
 struct ContactSurface {
   RigidTransform transform;                  // model frame → trainer frame ([[model]] placement)
   std::uint32_t touched_by_mask = 0;         // bit per instrument that may touch the model
@@ -53,9 +55,16 @@ struct ContactSurface {
   model::Aabb near_box{};
   bool surface_ready = false;  // deformed and grid are this cycle's
   float grid_slack_m = 0.0F;   // kGridSlackEdges × the rest mesh's longest edge
+  // A modal model's surface is reconstructed lazily (lazy_modal_surface.hpp): `deformed` holds
+  // this step's position only for the vertices of triangles the broad phase returned, so the
+  // narrow phases query broad_phase(), never `grid` directly. Bound by LazyModalSurface::begin
+  // each step; null for tensor models (deformed always whole).
+  LazyModalSurface* lazy = nullptr;
 
   std::size_t vertex_count() const noexcept { return rest_positions.size() / 3; }
   model::TriangleMeshView view() const noexcept { return {deformed, triangles}; }
+  // What the narrow phases query: the lazy surface when bound, else the grid (must exist).
+  model::TriangleBroadPhase& broad_phase() noexcept;
   // Is the trainer-frame point inside near_box (model frame)?
   bool near(const Eigen::Vector3f& world_m) const noexcept;
   // Makes the grid answer for `deformed`: refitted with a slack of grid_slack_m, and only

@@ -22,6 +22,7 @@
 
 #include "trainer/app/app_stats.hpp"
 #include "trainer/app/contact_surface.hpp"
+#include "trainer/app/lazy_modal_surface.hpp"
 #include "trainer/app/rigid_transform.hpp"
 #include "trainer/config/scene.hpp"
 #include "trainer/core/arena.hpp"
@@ -79,6 +80,8 @@ struct LoadedModelInfo {
 struct ModalModelState {
   std::optional<model::ModalModel> model;
   ContactSurface surface;
+  // Present when the surface has a grid: the surface reconstructed lazily at haptic rate.
+  std::optional<LazyModalSurface> lazy;
   std::span<const std::uint32_t> fixed_nodes;  // strictly increasing (the image's)
   // Shaft and jaws of the instruments touching it against the wall (ray-based collision; the
   // wall point found is imposed like the tip's).
