@@ -259,7 +259,12 @@ class BasicModalModel {
   bool residual_symmetric_ = false;
   std::uint64_t state_epoch_ = 0;  // counts steps and resets: the free responses' validity
   // The last accepted factorisation and the target nodes (in order) it was built for.
-  Eigen::LDLT<ContactMatrix> factorisation_;
+  // Constructed from a 1×1 identity, not default-constructed: Eigen's default LDLT leaves its
+  // ComputationInfo uninitialised, and moving the model (Expected<ModalModel>) would copy that
+  // indeterminate enum (undefined behaviour; UBSan's "invalid value for type
+  // 'ComputationInfo'", and a release build that misbehaved after it). Unused while
+  // factorised_count_ is 0; fixed capacity, no heap.
+  Eigen::LDLT<ContactMatrix> factorisation_{ContactMatrix::Identity(1, 1)};
   std::uint32_t factorised_nodes_[kMaxContacts] = {};
   std::size_t factorised_count_ = 0;
 };
