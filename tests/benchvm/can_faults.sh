@@ -25,8 +25,15 @@ specs=(
 i=0
 for spec in "${specs[@]}"; do
   chrt -f 50 "$bin/simdrive" --scene "$scene" --device "$device" --slow-motion "$slow" --no-stdin \
-    --fault "$spec" >"$out/fault_$i.simdrive.txt" 2>&1 &
+    --fault "$spec" --events "$out/fault_$i.events.jsonl" >"$out/fault_$i.simdrive.txt" 2>&1 &
   sim=$!
+  # The drives up before the master, as on a bench (simdrive_booted.sh says why).
+  if ! tests/benchvm/simdrive_booted.sh "$out/fault_$i.events.jsonl" "$out/fault_$i.simdrive.txt" \
+      "$sim"; then
+    echo "$spec -> simdrive did not come up"
+    kill -INT "$sim" 2>/dev/null
+    exit 10
+  fi
   "$bin/trainer" --scene "$scene" --device "$device" --cycles 260 --slow-motion "$slow" --no-rt \
     --report "$out/fault_$i.json" >"$out/fault_$i.trainer.txt" 2>&1
   echo "$spec -> trainer exit $?"

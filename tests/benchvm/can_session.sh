@@ -24,6 +24,9 @@ dump=$!
 chrt -f 50 "$bin/simdrive" --scene "$scene" --device "$device" --period-us "$period_us" --slow-motion "$slow" \
   --no-stdin --events "$out/simdrive_events.jsonl" "$@" >"$out/simdrive.txt" 2>&1 &
 sim=$!
+# The drives up before the master, as on a bench (simdrive_booted.sh says why).
+tests/benchvm/simdrive_booted.sh "$out/simdrive_events.jsonl" "$out/simdrive.txt" "$sim" || {
+  kill -INT "$sim" 2>/dev/null; kill -INT "$dump" 2>/dev/null; exit 10; }
 "$bin/trainer" --scene "$scene" --device "$device" --period-us "$period_us" --cycles "$cycles" \
   --slow-motion "$slow" --overrun-streak-limit 1000 --no-rt --report "$out/can_report.json" \
   >"$out/trainer.txt" 2>&1
