@@ -5,14 +5,14 @@
 #include <cmath>
 #include <string>
 
+#include "arena_carve.hpp"
+
 namespace trainer::model {
 namespace {
 
 template <class T>
 core::Expected<std::span<T>> carve(core::Arena& arena, std::size_t count, std::string_view what) {
-  auto span = arena.allocate_array<T>(count, what);
-  if (!span) return core::make_error("bucket grid: arena exhausted: " + span.error().message);
-  return span.value();
+  return detail::carve_array<T>(arena, count, what, "bucket grid");
 }
 
 bool is_power_of_two(std::uint32_t value) { return value != 0 && (value & (value - 1)) == 0; }

@@ -7,14 +7,14 @@
 #include <string>
 #include <vector>
 
+#include "arena_carve.hpp"
+
 namespace trainer::model {
 namespace {
 
 template <class T>
 core::Expected<std::span<T>> carve_bvh(core::Arena& arena, std::size_t count, std::string_view what) {
-  auto span = arena.allocate_array<T>(count, what);
-  if (!span) return core::make_error("triangle bvh: arena exhausted: " + span.error().message);
-  return span.value();
+  return detail::carve_array<T>(arena, count, what, "triangle bvh");
 }
 
 Vec3 bvh_vertex(std::span<const float> positions, std::uint32_t v) noexcept {
