@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "trainer/metrics/metrics_report.hpp"
+#include "report_compute.hpp"
 
 namespace trainer::app {
 
@@ -70,45 +71,6 @@ nlohmann::json substage_split(const AppStats& app) {
     split[kSubstageNames[substage]] = percentiles(app.substage_ns[substage]);
   }
   return split;
-}
-
-nlohmann::json statistics_json(const ComputeStatistics& s) {
-  return {{"count", s.count},    {"min", s.min_ns}, {"p50", s.p50_ns},  {"p99", s.p99_ns},
-          {"p99_9", s.p99_9_ns}, {"max", s.max_ns}, {"mean", s.mean_ns}};
-}
-
-std::string hash_hex(std::uint64_t hash) {
-  char text[24];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
-  return text;
-}
-
-// trainer --repeat: the per-cycle minimum compute over the runs (null otherwise).
-nlohmann::json compute_json(const RunResult& r) {
-  if (!r.compute) return nullptr;
-  const ComputeSummary& c = *r.compute;
-  nlohmann::json stages = nlohmann::json::object();
-  for (const ComputeStatistics& s : c.stages) stages[s.name] = statistics_json(s);
-  nlohmann::json substages = nlohmann::json::object();
-  for (const ComputeStatistics& s : c.substages) substages[s.name] = statistics_json(s);
-  nlohmann::json runs = nlohmann::json::array();
-  for (const ComputeRun& run : c.per_run) {
-    runs.push_back({{"cycles", run.cycles},
-                    {"final_state_hash", hash_hex(run.final_state_hash)},
-                    {"wall_time_s", run.wall_time_s},
-                    {"step_ns", statistics_json(run.step)}});
-  }
-  return {{"clock", "CLOCK_MONOTONIC"},
-          {"statistic", "per-cycle minimum over the runs"},
-          {"runs", c.runs},
-          {"cycles", c.cycles},
-          {"period_ns", c.period_ns},
-          {"identical", c.identical},
-          {"mismatch", c.mismatch},
-          {"step_ns", statistics_json(c.step)},
-          {"stages_ns", stages},
-          {"substages_ns", substages},
-          {"per_run", runs}};
 }
 
 nlohmann::json instruments_json(const RunResult& r) {
@@ -426,7 +388,7 @@ nlohmann::json report_json(const RunResult& r) {
       {"can", can_json(r)},
       {"usb", usb_json(r)},
       {"telemetry", telemetry_stream_json(r)},
-      {"compute", compute_json(r)},
+      {"compute", compute_section_json(r)},
   };
 }
 
@@ -499,37 +461,6 @@ void summarize_timing(const RunResult& r, std::ostream& out) {
       << ", skipped periods " << r.loop.skipped_periods << "\n";
 }
 
-std::string statistics_line(const ComputeStatistics& s) {
-  return microseconds(s.p50_ns) + "/" + microseconds(s.p99_ns) + "/" + microseconds(s.p99_9_ns) +
-         "/" + microseconds(s.max_ns);
-}
-
-// trainer --repeat: the per-cycle minimum over the runs, and each run's own step for contrast.
-void summarize_compute_lines(const RunResult& r, std::ostream& out) {
-  if (!r.compute) return;
-  const ComputeSummary& c = *r.compute;
-  out << "  compute, per-cycle minimum of " << c.runs << " run(s) of " << c.cycles
-      << " cycles (real clock), p50/p99/p99.9/max us:\n";
-  if (!c.identical)
-    out << "  WARNING: the runs were not identical (" << c.mismatch
-        << "): the per-cycle minima mean nothing\n";
-  out << "    step " << statistics_line(c.step) << " (mean "
-      << microseconds(static_cast<std::int64_t>(c.step.mean_ns)) << ")\n";
-  out << "    stages:";
-  for (const ComputeStatistics& s : c.stages) out << " " << s.name << " " << statistics_line(s);
-  out << "\n";
-  if (!c.substages.empty()) {
-    out << "    sub-stages:";
-    for (const ComputeStatistics& s : c.substages)
-      out << " " << s.name << " " << statistics_line(s);
-    out << "\n";
-  }
-  out << "    each run's own step p50/p99.9 us:";
-  for (const ComputeRun& run : c.per_run)
-    out << " " << microseconds(run.step.p50_ns) << "/" << microseconds(run.step.p99_9_ns);
-  out << "\n";
-}
-
 void summarize_rt(const RunResult& r, std::ostream& out) {
   out << "  heap allocations after arming: " << r.heap_allocations_after_arming
       << (r.allocation_hooks_installed ? "" : " (not measured)") << "; arena " << r.arena_bytes_used
@@ -567,7 +498,7 @@ std::string report_summary(const RunResult& r) {
       << "wall time " << r.wall_time_s << " s"
       << (r.stopped_by_signal ? " (stopped by signal)" : "") << "\n";
   summarize_timing(r, out);
-  summarize_compute_lines(r, out);
+  summarize_compute_section(r, out);
   summarize_rt(r, out);
   summarize_instruments(r, out);
   std::size_t text_modal = 0;
