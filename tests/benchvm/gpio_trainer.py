@@ -66,8 +66,16 @@ def main():
     if with_simdrive:
         simdrive = subprocess.Popen(
             ["chrt", "-f", "50", f"{bin_dir}/simdrive", "--scene", scene,
-             "--device", device, "--slow-motion", str(slow), "--no-stdin"],
+             "--device", device, "--slow-motion", str(slow), "--no-stdin",
+             "--events", f"{out}.simdrive_events.jsonl"],
             stdout=open(f"{out}.simdrive.txt", "w"), stderr=subprocess.STDOUT)
+        # The drives up before the master, as on a bench (simdrive_booted.sh says why).
+        if subprocess.run(["tests/benchvm/simdrive_booted.sh", f"{out}.simdrive_events.jsonl",
+                           f"{out}.simdrive.txt", str(simdrive.pid)]).returncode != 0:
+            print("simdrive_booted=no")
+            simdrive.send_signal(2)
+            simdrive.wait()
+            return 1
     trainer = subprocess.Popen(
         [f"{bin_dir}/trainer", "--scene", scene,
          "--device", device, "--cycles", str(cycles),
