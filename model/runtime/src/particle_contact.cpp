@@ -20,6 +20,16 @@ using detail::vertex_position;
 constexpr std::uint32_t kNoSlot = std::numeric_limits<std::uint32_t>::max();
 using detail::kMinDirectionDistanceM;
 
+// How much farther than reach a triangle's box must be for the particle's exact test to be
+// certain to reject it. The exact test compares the float distance |c − p| (p the closest point
+// computed in float) with reach; p and the distance carry a rounding error of a few ulp of the
+// coordinates (|c| + reach bounds them near a contact), and the box distance a few ulp of
+// reach. 64 ulp of that magnitude plus 1 µm is far above both, and far below the millimetres
+// by which most broad-phase candidates miss.
+float particle_box_guard_m(const Vec3& centre_m, float reach_m) noexcept {
+  return 1e-6F + 64.0F * std::numeric_limits<float>::epsilon() * (centre_m.cwiseAbs().maxCoeff() + reach_m);
+}
+
 bool share_vertex(const std::uint32_t (&first)[3], const std::uint32_t (&second)[3]) noexcept {
   return contains(second, first[0]) || contains(second, first[1]) || contains(second, first[2]);
 }
@@ -179,6 +189,13 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
   if (!status.is_ok() && status.code() != core::StatusCode::capacity_exceeded) return status;
 
   // Triangles within reach (degenerate ones have no plane: their neighbours carry the contact).
+  // Most candidates of the broad phase (boxes grown by its slack) are beyond reach: a
+  // triangle whose own box is farther than reach plus a rounding guard (particle_box_guard_m)
+  // cannot pass the exact test below, so it is dropped before the closest point is computed.
+  // The candidates kept, their order and every value computed for them are those of the exact
+  // test alone (docs/collision.md, "Particle contact: the box prefilter").
+  const float guarded_reach = reach_m + particle_box_guard_m(centre_m, reach_m);
+  const float guarded_squared = guarded_reach * guarded_reach;
   std::uint32_t count = 0;
   for (std::size_t k = 0; k < id_count; ++k) {
     Candidate& candidate = candidates_[count];
@@ -186,6 +203,9 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
     const Vec3 a = vertex_position(mesh, candidate.vertices[0]);
     const Vec3 b = vertex_position(mesh, candidate.vertices[1]);
     const Vec3 c = vertex_position(mesh, candidate.vertices[2]);
+    const Vec3 below = a.cwiseMin(b).cwiseMin(c) - centre_m;  // > 0 where the box is above
+    const Vec3 above = centre_m - a.cwiseMax(b).cwiseMax(c);  // > 0 where the box is below
+    if (below.cwiseMax(above).cwiseMax(0.0F).squaredNorm() > guarded_squared) continue;
     if (triangle_is_degenerate(a, b, c)) continue;
     const TrianglePoint closest = closest_point_on_nondegenerate_triangle(centre_m, a, b, c);
     const float distance = (centre_m - closest.point).norm();
