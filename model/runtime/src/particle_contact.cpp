@@ -133,7 +133,8 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
                                              std::span<const Vec3> particle_velocities_m_per_s,
                                              float radius_m, const TriangleMeshView& mesh,
                                              std::span<const float> surface_velocities_m_per_s,
-                                             TriangleBroadPhase& grid, ParticleContactOutput& out) noexcept {
+                                             TriangleBroadPhase& grid, ParticleContactOutput& out,
+                                             const Aabb* grid_bounds) noexcept {
   clear_outputs();
   core::Status status = core::Status::ok();
   if (particles_m.size() > settings_.max_particles) {
@@ -162,6 +163,8 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
       if (!centre.allFinite() || !velocity.allFinite()) {
         particle_status = {core::StatusCode::numeric_error,
                            "particle contact: non-finite particle position or velocity"};
+      } else if (grid_bounds != nullptr && !grid_bounds->overlaps(Aabb::around_point(centre, reach_m))) {
+        // Outside every box the broad phase holds: it would return no candidate.
       } else if (reach_m > 0.0F) {  // a zero reach touches nothing (contact needs distance < reach)
         particle_status =
             particle_contacts(particle, centre, velocity, reach_m, mesh, surface_velocities_m_per_s, grid);

@@ -16,6 +16,7 @@
 
 #include "trainer/core/arena.hpp"
 #include "trainer/model/geometry.hpp"
+#include "trainer/model/triangle_bvh.hpp"
 
 namespace trainer::model {
 namespace {
@@ -124,6 +125,76 @@ TEST(ParticleContactPrefilter, NeverDropsATriangleTheExactTestKeeps) {
   // Both sides of the boundary were exercised.
   EXPECT_GT(touching, 1000);
   EXPECT_GT(apart, 1000);
+}
+
+// With the hierarchy's root box as grid_bounds, particles outside it are not queried; the
+// output (records, particle forces, node forces) is the same as without, for particles in,
+// near and far from the tube, and counted queries show the skip happened.
+TEST(ParticleContactPrefilter, GridBoundsSkipOnlyParticlesTheBroadPhaseCannotReach) {
+  const PrefilterMesh mesh = make_prefilter_tube();
+  auto arena = core::Arena::create(8U << 20);
+  ASSERT_TRUE(arena.has_value());
+  auto bvh = TriangleBvh::create(mesh.positions, mesh.triangles, *arena);
+  ASSERT_TRUE(bvh.has_value());
+  ASSERT_TRUE(bvh->refit(mesh.positions, 7.5e-4F).is_ok());
+  struct CountingBroadPhase final : TriangleBroadPhase {
+    TriangleBvh* inner = nullptr;
+    int queries = 0;
+    core::Status query(const Aabb& box, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept override {
+      ++queries;
+      return inner->query(box, out_ids, out_count);
+    }
+  };
+  CountingBroadPhase counting;
+  counting.inner = &*bvh;
+  ParticleContactSettings settings;
+  settings.max_particles = 64;
+  settings.max_contacts = 256;
+  settings.max_nodes = 4096;
+  settings.stiffness_n_per_m = 1000.0F;
+  settings.surface_offset_m = 5e-4F;
+  settings.max_force_n = 100.0F;
+  settings.side = ContactSide::inner;
+  auto with = ParticleSurfaceContact::create(settings, *arena);
+  auto without = ParticleSurfaceContact::create(settings, *arena);
+  ASSERT_TRUE(with.has_value() && without.has_value());
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> across(-0.012F, 0.012F);
+  std::uniform_real_distribution<float> along(-0.02F, 0.06F);
+  std::vector<Vec3> particles;
+  for (int i = 0; i < 64; ++i) particles.emplace_back(0.03F + across(random), -0.01F + across(random), along(random));
+  std::uint32_t contacts = 0;
+  for (int round = 0; round < 20; ++round) {
+    for (Vec3& p : particles) p.z() += 0.001F * static_cast<float>(round % 3) - 0.001F;
+    ParticleContactOutput out_with;
+    ParticleContactOutput out_without;
+    counting.queries = 0;
+    ASSERT_TRUE(with->compute(particles, {}, 0.00225F, {mesh.positions, mesh.triangles}, {}, counting, out_with,
+                              &bvh->bounds()).is_ok());
+    const int skipped_queries = counting.queries;
+    counting.queries = 0;
+    ASSERT_TRUE(without->compute(particles, {}, 0.00225F, {mesh.positions, mesh.triangles}, {}, counting,
+                                 out_without).is_ok());
+    EXPECT_EQ(counting.queries, 64);
+    EXPECT_LT(skipped_queries, 64);
+    ASSERT_EQ(out_with.contact_count, out_without.contact_count);
+    contacts += out_with.contact_count;
+    for (std::size_t k = 0; k < out_with.contacts.size(); ++k) {
+      EXPECT_EQ(out_with.contacts[k].particle, out_without.contacts[k].particle);
+      EXPECT_EQ(out_with.contacts[k].vertices, out_without.contacts[k].vertices);
+      EXPECT_EQ(out_with.contacts[k].point_m, out_without.contacts[k].point_m);
+      EXPECT_EQ(out_with.contacts[k].normal, out_without.contacts[k].normal);
+    }
+    for (std::size_t i = 0; i < particles.size(); ++i) {
+      EXPECT_EQ(out_with.particle_forces_n[i], out_without.particle_forces_n[i]);
+    }
+    ASSERT_EQ(out_with.node_forces.size(), out_without.node_forces.size());
+    for (std::size_t k = 0; k < out_with.node_forces.size(); ++k) {
+      EXPECT_EQ(out_with.node_forces[k].node, out_without.node_forces[k].node);
+      EXPECT_EQ(out_with.node_forces[k].force_n, out_without.node_forces[k].force_n);
+    }
+  }
+  EXPECT_GT(contacts, 20U);  // the comparison covered particles touching the wall
 }
 
 }  // namespace
