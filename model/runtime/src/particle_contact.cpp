@@ -196,7 +196,7 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
   // triangle whose own box is farther than reach plus a rounding guard (particle_box_guard_m)
   // cannot pass the exact test below, so it is dropped before the closest point is computed.
   // The candidates kept, their order and every value computed for them are those of the exact
-  // test alone (docs/collision.md, "Particle contact: the box prefilter").
+  // test alone (docs/collision.md, "Particle ↔ surface contact").
   const float guarded_reach = reach_m + particle_box_guard_m(centre_m, reach_m);
   const float guarded_squared = guarded_reach * guarded_reach;
   std::uint32_t count = 0;
