@@ -190,6 +190,7 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
   core::Status status = grid.query(Aabb::around_point(centre_m, reach_m), candidate_ids_, id_count);
   // capacity_exceeded: the ids returned are still used (a crowded region keeps its contacts).
   if (!status.is_ok() && status.code() != core::StatusCode::capacity_exceeded) return status;
+  if (id_count == 0) return status;  // nothing near (most particles): no patch, no contact
 
   // Triangles within reach (degenerate ones have no plane: their neighbours carry the contact).
   // Most candidates of the broad phase (boxes grown by its slack) are beyond reach: a
