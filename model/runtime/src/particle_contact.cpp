@@ -20,6 +20,16 @@ using detail::vertex_position;
 constexpr std::uint32_t kNoSlot = std::numeric_limits<std::uint32_t>::max();
 using detail::kMinDirectionDistanceM;
 
+// How much farther than reach a triangle's box must be for the particle's exact test to be
+// certain to reject it. The exact test compares the float distance |c − p| (p the closest point
+// computed in float) with reach; p and the distance carry a rounding error of a few ulp of the
+// coordinates (|c| + reach bounds them near a contact), and the box distance a few ulp of
+// reach. 64 ulp of that magnitude plus 1 µm is far above both, and far below the millimetres
+// by which most broad-phase candidates miss.
+float particle_box_guard_m(const Vec3& centre_m, float reach_m) noexcept {
+  return 1e-6F + 64.0F * std::numeric_limits<float>::epsilon() * (centre_m.cwiseAbs().maxCoeff() + reach_m);
+}
+
 bool share_vertex(const std::uint32_t (&first)[3], const std::uint32_t (&second)[3]) noexcept {
   return contains(second, first[0]) || contains(second, first[1]) || contains(second, first[2]);
 }
@@ -123,7 +133,8 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
                                              std::span<const Vec3> particle_velocities_m_per_s,
                                              float radius_m, const TriangleMeshView& mesh,
                                              std::span<const float> surface_velocities_m_per_s,
-                                             TriangleBroadPhase& grid, ParticleContactOutput& out) noexcept {
+                                             TriangleBroadPhase& grid, ParticleContactOutput& out,
+                                             const Aabb* grid_bounds) noexcept {
   clear_outputs();
   core::Status status = core::Status::ok();
   if (particles_m.size() > settings_.max_particles) {
@@ -152,6 +163,8 @@ core::Status ParticleSurfaceContact::compute(std::span<const Vec3> particles_m,
       if (!centre.allFinite() || !velocity.allFinite()) {
         particle_status = {core::StatusCode::numeric_error,
                            "particle contact: non-finite particle position or velocity"};
+      } else if (grid_bounds != nullptr && !grid_bounds->overlaps(Aabb::around_point(centre, reach_m))) {
+        // Outside every box the broad phase holds: it would return no candidate.
       } else if (reach_m > 0.0F) {  // a zero reach touches nothing (contact needs distance < reach)
         particle_status =
             particle_contacts(particle, centre, velocity, reach_m, mesh, surface_velocities_m_per_s, grid);
@@ -177,8 +190,16 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
   core::Status status = grid.query(Aabb::around_point(centre_m, reach_m), candidate_ids_, id_count);
   // capacity_exceeded: the ids returned are still used (a crowded region keeps its contacts).
   if (!status.is_ok() && status.code() != core::StatusCode::capacity_exceeded) return status;
+  if (id_count == 0) return status;  // nothing near (most particles): no patch, no contact
 
   // Triangles within reach (degenerate ones have no plane: their neighbours carry the contact).
+  // Most candidates of the broad phase (boxes grown by its slack) are beyond reach: a
+  // triangle whose own box is farther than reach plus a rounding guard (particle_box_guard_m)
+  // cannot pass the exact test below, so it is dropped before the closest point is computed.
+  // The candidates kept, their order and every value computed for them are those of the exact
+  // test alone (docs/collision.md, "Particle ↔ surface contact").
+  const float guarded_reach = reach_m + particle_box_guard_m(centre_m, reach_m);
+  const float guarded_squared = guarded_reach * guarded_reach;
   std::uint32_t count = 0;
   for (std::size_t k = 0; k < id_count; ++k) {
     Candidate& candidate = candidates_[count];
@@ -186,6 +207,9 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
     const Vec3 a = vertex_position(mesh, candidate.vertices[0]);
     const Vec3 b = vertex_position(mesh, candidate.vertices[1]);
     const Vec3 c = vertex_position(mesh, candidate.vertices[2]);
+    const Vec3 below = a.cwiseMin(b).cwiseMin(c) - centre_m;  // > 0 where the box is above
+    const Vec3 above = centre_m - a.cwiseMax(b).cwiseMax(c);  // > 0 where the box is below
+    if (below.cwiseMax(above).cwiseMax(0.0F).squaredNorm() > guarded_squared) continue;
     if (triangle_is_degenerate(a, b, c)) continue;
     const TrianglePoint closest = closest_point_on_nondegenerate_triangle(centre_m, a, b, c);
     const float distance = (centre_m - closest.point).norm();

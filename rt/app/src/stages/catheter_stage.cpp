@@ -41,10 +41,14 @@ bool CatheterStage::add_wall_planes(std::size_t index, std::size_t& plane_count)
       state.model_frame_velocities[i] = wall.transform.vector_to_model(velocities[i]);
     }
     const float detection_radius = catheter.radius_m() + kWallDetectionMarginM;
+    // The hierarchy's root box holds every triangle box a query can return: the particles
+    // outside it (most of the catheter) are not queried (docs/catheter.md, "Issue 19, round 2").
+    const model::Aabb* bounds = wall.grid && wall.grid->ready() ? &wall.grid->bounds() : nullptr;
     const core::Status found =
         state.walls[m]->compute(state.model_frame_positions.first(positions.size()),
                                 state.model_frame_velocities.first(positions.size()),
-                                detection_radius, wall.view(), {}, wall.broad_phase(), state.wall_out[m]);
+                                detection_radius, wall.view(), {}, wall.broad_phase(), state.wall_out[m],
+                                bounds);
     if (!found.is_ok()) ok = false;
     stats.dropped_contacts += state.wall_out[m].dropped_count;
     const float reach = catheter.radius_m() + walls_[m].half_thickness_m;  // to the wall's surface

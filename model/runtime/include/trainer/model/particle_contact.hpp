@@ -126,10 +126,15 @@ class ParticleSurfaceContact {
   //                     extra ones are dropped and counted);
   //   numeric_error     a non-finite particle position/velocity or contact force (that
   //                     particle or contact gets no force).
+  // `grid_bounds` (optional): a box that holds the box of every triangle `grid` can return
+  // (TriangleBvh::bounds() while it is ready). A particle whose reach box misses it is not
+  // queried: the broad phase would return nothing for it (most of a catheter lies outside the
+  // duct's box), so the output is the same with or without it.
   core::Status compute(std::span<const Vec3> particles_m,
                        std::span<const Vec3> particle_velocities_m_per_s, float radius_m,
                        const TriangleMeshView& mesh, std::span<const float> surface_velocities_m_per_s,
-                       TriangleBroadPhase& grid, ParticleContactOutput& out) noexcept;
+                       TriangleBroadPhase& grid, ParticleContactOutput& out,
+                       const Aabb* grid_bounds = nullptr) noexcept;
 
   const ParticleContactSettings& settings() const noexcept { return settings_; }
 
