@@ -32,6 +32,7 @@
 #include "trainer/core/expected.hpp"
 #include "trainer/core/status.hpp"
 #include "trainer/model/broad_phase.hpp"
+#include "trainer/model/segment_box.hpp"
 
 namespace trainer::model {
 
@@ -92,13 +93,23 @@ class TriangleBvh final : public TriangleBroadPhase {
     std::uint32_t first = 0;  // leaf: first slot in order_; internal: index of the right child
     std::uint32_t count = 0;  // leaf: triangles (≥ 1); internal: 0 (the left child is index + 1)
   };
+  // The traversal's tree: the binary tree with every other level folded in, so a node has up
+  // to 4 children (the binary node's grandchildren, or a child leaf itself), their boxes side
+  // by side for one 4-wide test (segment_box.hpp). Boxes copied from nodes_ at each refit.
+  struct WideNode {
+    AabbPack4 boxes;                  // unused lanes inverted (never pass)
+    std::uint32_t child[4] = {};      // internal: wide node index; leaf: its first pack
+    std::uint32_t packs[4] = {};      // leaf: its pack count (≥ 1); internal or unused: 0
+    std::uint32_t binary[4] = {};     // the binary node of each used lane
+    std::uint32_t used = 0;           // lanes 0..used-1
+  };
 
   TriangleBvh() = default;
   void refit_boxes() noexcept;
-  // The traversal of query() and query_segment(): `accept(box)` says whether a node or
-  // triangle box may hold an answer.
-  template <class Accept>
-  core::Status collect(Accept&& accept, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  // The traversal of query() and query_segment(): `accept4(pack)` gives the lanes of a pack of
+  // 4 node or triangle boxes that may hold an answer.
+  template <class Accept4>
+  core::Status collect(Accept4&& accept4, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
 
   std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
   std::span<Node> nodes_;
@@ -106,6 +117,9 @@ class TriangleBvh final : public TriangleBroadPhase {
   std::span<Aabb> triangle_boxes_;     // per triangle, grown by slack_m_
   std::span<float> reference_;         // 3n: the positions of the last refit
   std::span<std::uint64_t> hit_bits_;  // per triangle, one query's hits (all zero between queries)
+  std::span<WideNode> wide_;           // root first
+  std::span<AabbPack4> leaf_packs_;    // each leaf's triangle boxes, 4 per pack (stored boxes)
+  std::span<std::uint32_t> pack_ids_;  // 4 per pack: the triangle in each lane
   std::size_t depth_ = 0;
   float slack_m_ = 0.0F;
   bool ready_ = false;
