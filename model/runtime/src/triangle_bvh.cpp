@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -357,6 +358,26 @@ core::Status TriangleBvh::query_segment(const Vec3& p0, const Vec3& p1, float ma
   // The margin grown a little so that rounding in the clipping never drops a triangle at
   // exactly margin_m; the segment's own box first (cheap, and exact for a degenerate segment).
   const float margin = margin_m * (1.0F + 1e-5F) + 1e-9F;
+  const SegmentBoxTest test(p0, p1, margin);
+  return collect([&test](const AabbPack4& pack) { return test.meets4(pack); }, out_ids, out_count);
+}
+
+core::Status TriangleBvh::query_segment_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
+                                               std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
+  out_count = 0;
+  if (!p0.allFinite() || !p1.allFinite() || !(margin_m >= 0.0F) || !std::isfinite(margin_m)) {
+    return {core::StatusCode::invalid_argument, "triangle bvh: segment non-finite or margin negative"};
+  }
+  if (!ready_) return core::Status::ok();
+  float margin = margin_m * (1.0F + 1e-5F) + 1e-9F;
+  if (deviation_m >= 0.0F && deviation_m < slack_m_) {
+    // A stored bound is fl(reference ∓ slack), the test's fl(bound ∓ margin − p0): a few ulp of
+    // the coordinates each; the guard is 16 of them, with the coordinates' scale from the root.
+    const Aabb& root = nodes_[0].box;
+    const float scale = std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack_m_;
+    const float guard = 16.0F * std::numeric_limits<float>::epsilon() * scale;
+    margin -= std::max(0.0F, (slack_m_ - deviation_m) - guard);
+  }
   const SegmentBoxTest test(p0, p1, margin);
   return collect([&test](const AabbPack4& pack) { return test.meets4(pack); }, out_ids, out_count);
 }

@@ -72,6 +72,15 @@ class TriangleBvh final : public TriangleBroadPhase {
   core::Status query_segment(const Vec3& p0, const Vec3& p1, float margin_m, std::span<std::uint32_t> out_ids,
                              std::size_t& out_count) noexcept override;
 
+  // query_segment() for a caller that knows how far the mesh is from the positions of the last
+  // refit: every vertex within deviation_m of them, per coordinate (0 ≤ deviation_m ≤ the
+  // slack; LazyModalSurface's motion bound, or last_deviation_m() right after a refit). The
+  // stored boxes are then taken as grown by deviation_m instead of the slack (the query's
+  // margin reduced by the difference, plus a rounding guard), so fewer triangles come back and
+  // still every one within margin_m. A deviation_m outside [0, slack] is ignored (the slack).
+  core::Status query_segment_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
+                                    std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+
   std::size_t triangle_count() const noexcept { return triangle_boxes_.size(); }
   std::size_t vertex_count() const noexcept { return reference_.size() / 3; }
   std::size_t node_count() const noexcept { return nodes_.size(); }
