@@ -369,17 +369,35 @@ core::Status TriangleBvh::query_segment_within(const Vec3& p0, const Vec3& p1, f
     return {core::StatusCode::invalid_argument, "triangle bvh: segment non-finite or margin negative"};
   }
   if (!ready_) return core::Status::ok();
-  float margin = margin_m * (1.0F + 1e-5F) + 1e-9F;
-  if (deviation_m >= 0.0F && deviation_m < slack_m_) {
-    // A stored bound is fl(reference ∓ slack), the test's fl(bound ∓ margin − p0): a few ulp of
-    // the coordinates each; the guard is 16 of them, with the coordinates' scale from the root.
-    const Aabb& root = nodes_[0].box;
-    const float scale = std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack_m_;
-    const float guard = 16.0F * std::numeric_limits<float>::epsilon() * scale;
-    margin -= std::max(0.0F, (slack_m_ - deviation_m) - guard);
-  }
+  const float margin = margin_m * (1.0F + 1e-5F) + 1e-9F - unused_slack(deviation_m);
   const SegmentBoxTest test(p0, p1, margin);
   return collect([&test](const AabbPack4& pack) { return test.meets4(pack); }, out_ids, out_count);
+}
+
+float TriangleBvh::unused_slack(float deviation_m) const noexcept {
+  if (!(deviation_m >= 0.0F && deviation_m < slack_m_)) return 0.0F;
+  // A stored bound is fl(reference ∓ slack), a test's fl(bound ∓ margin − p0) or fl(query ±
+  // unused): a few ulp of the coordinates each; the guard is 16 of them, with the coordinates'
+  // scale from the root box.
+  const Aabb& root = nodes_[0].box;
+  const float scale = std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack_m_;
+  const float guard = 16.0F * std::numeric_limits<float>::epsilon() * scale;
+  return std::max(0.0F, (slack_m_ - deviation_m) - guard);
+}
+
+core::Status TriangleBvh::query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,
+                                       std::size_t& out_count) noexcept {
+  out_count = 0;
+  if (!box.min_m.allFinite() || !box.max_m.allFinite() || (box.min_m.array() > box.max_m.array()).any()) {
+    return {core::StatusCode::invalid_argument, "triangle bvh: query box non-finite or inverted"};
+  }
+  if (!ready_) return core::Status::ok();
+  // A stored box shrunk by u overlaps `box` exactly when the stored box overlaps `box` shrunk
+  // by u, even where that inverts it (each axis: min + u ≤ q_max ⇔ min ≤ q_max − u).
+  const float unused = unused_slack(deviation_m);
+  const Aabb shrunk{(box.min_m.array() + unused).matrix(), (box.max_m.array() - unused).matrix()};
+  return collect([&shrunk](const AabbPack4& pack) { return SegmentBoxTest::overlaps4(pack, shrunk); }, out_ids,
+                 out_count);
 }
 
 }  // namespace trainer::model

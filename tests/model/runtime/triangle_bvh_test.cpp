@@ -195,7 +195,7 @@ TEST(TriangleBvh, SegmentQueryKeepsEveryTriangleWithinTheMargin) {
 // query_segment_within: the mesh moved since the last refit (less than the slack: no refit; a
 // collapsed vertex moves farther: a refit, then deviation 0), the caller states by how much (the true largest coordinate change, or more); every triangle
 // within the margin is still returned, the list is a subset of query_segment()'s and clearly
-// shorter; a deviation outside [0, slack] is the plain query.
+// shorter; a deviation outside [0, slack] is the plain query. The same for query_within (boxes).
 TEST(TriangleBvh, SegmentQueryWithinAStatedDeviationKeepsEveryTriangleWithinTheMargin) {
   std::mt19937 rng(31);
   std::uniform_real_distribution<float> u(0.0F, 1.0F);
@@ -212,6 +212,9 @@ TEST(TriangleBvh, SegmentQueryWithinAStatedDeviationKeepsEveryTriangleWithinTheM
   std::size_t within = 0;
   std::size_t plain_total = 0;
   std::size_t tight_total = 0;
+  std::size_t box_within = 0;
+  std::size_t box_plain_total = 0;
+  std::size_t box_tight_total = 0;
   for (int cycle = 0; cycle < 10; ++cycle) {
     bvh_deform(mesh, rng, cycle % 2 == 1);  // ≤ 1.2 mm per coordinate, more where collapsed
     if (cycle % 3 == 2) mesh.positions = mesh.rest;
@@ -249,6 +252,22 @@ TEST(TriangleBvh, SegmentQueryWithinAStatedDeviationKeepsEveryTriangleWithinTheM
       }
       plain_total += plain_count;
       tight_total += count;
+      // The box query with the same statement: every triangle whose current box overlaps.
+      const Aabb box = Aabb::around_point(p0, query % 5 == 0 ? 0.0F : 0.0015F * u(rng));
+      std::size_t box_plain = 0;
+      std::size_t box_tight = 0;
+      ASSERT_TRUE(bvh.query(box, plain, box_plain).is_ok());
+      ASSERT_TRUE(bvh.query_within(box, stated, tight, box_tight).is_ok());
+      ASSERT_TRUE(std::includes(plain.begin(), plain.begin() + static_cast<std::ptrdiff_t>(box_plain), tight.begin(),
+                                tight.begin() + static_cast<std::ptrdiff_t>(box_tight)));
+      for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+        if (!mesh.box(t).overlaps(box)) continue;
+        ++box_within;
+        ASSERT_TRUE(std::binary_search(tight.begin(), tight.begin() + static_cast<std::ptrdiff_t>(box_tight), t)) << t;
+      }
+      box_plain_total += box_plain;
+      box_tight_total += box_tight;
+      ASSERT_TRUE(bvh.query_segment(p0, p1, margin, plain, plain_count).is_ok());
       // Outside [0, slack]: the plain answer.
       std::size_t ignored = 0;
       ASSERT_TRUE(bvh.query_segment_within(p0, p1, margin, query % 2 == 0 ? -1.0F : slack, tight, ignored).is_ok());
@@ -258,6 +277,8 @@ TEST(TriangleBvh, SegmentQueryWithinAStatedDeviationKeepsEveryTriangleWithinTheM
   }
   EXPECT_GT(within, static_cast<std::size_t>(3 * kBvhSegmentQueries));
   EXPECT_LT(tight_total, plain_total - plain_total / 5) << "a stated deviation should cut candidates";
+  EXPECT_GT(box_within, 1000U);
+  EXPECT_LT(box_tight_total, box_plain_total - box_plain_total / 5);
   std::size_t count = 0;
   EXPECT_EQ(bvh.query_segment_within(Vec3::Zero(), Vec3(NAN, 0, 0), 0.001F, 0.0F, tight, count).code(),
             core::StatusCode::invalid_argument);

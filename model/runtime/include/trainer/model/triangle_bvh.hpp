@@ -80,6 +80,10 @@ class TriangleBvh final : public TriangleBroadPhase {
   // still every one within margin_m. A deviation_m outside [0, slack] is ignored (the slack).
   core::Status query_segment_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
                                     std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  // query() with the same statement: every triangle whose current AABB overlaps `box` is
+  // returned (a subset of query()'s list).
+  core::Status query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,
+                            std::size_t& out_count) noexcept;
 
   std::size_t triangle_count() const noexcept { return triangle_boxes_.size(); }
   std::size_t vertex_count() const noexcept { return reference_.size() / 3; }
@@ -115,6 +119,9 @@ class TriangleBvh final : public TriangleBroadPhase {
 
   TriangleBvh() = default;
   void refit_boxes() noexcept;
+  // How much of the slack a stated deviation leaves unused, less the rounding guard (≥ 0; 0
+  // for a deviation outside [0, slack)).
+  float unused_slack(float deviation_m) const noexcept;
   // The traversal of query() and query_segment(): `accept4(pack)` gives the lanes of a pack of
   // 4 node or triangle boxes that may hold an answer.
   template <class Accept4>
