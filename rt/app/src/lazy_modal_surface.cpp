@@ -361,7 +361,7 @@ core::Status LazyModalSurface::query(const model::Aabb& box, std::span<std::uint
                                      std::size_t& out_count) noexcept {
   out_count = 0;
   if (surface_ == nullptr || !surface_->grid) return core::Status::ok();
-  const core::Status status = surface_->grid->query(box, out_ids, out_count);
+  const core::Status status = surface_->grid->query_within(box, within_m_, out_ids, out_count);
   ensure_candidates(out_ids.first(std::min(out_count, out_ids.size())));
   return status;
 }
