@@ -238,6 +238,12 @@ void TriangleBvh::refit_boxes() noexcept {
       node.box = Aabb{left.min_m.cwiseMin(right.min_m), left.max_m.cwiseMax(right.max_m)};
     }
   }
+  // A stored bound is fl(reference ∓ slack), a test's fl(bound ∓ margin − p0) or fl(query ±
+  // unused slack): a few ulp of the coordinates each; the guard of the stated-deviation queries
+  // is 16 of them, with the coordinates' scale from the root box.
+  const Aabb& root = nodes_[0].box;
+  rounding_guard_m_ = 16.0F * std::numeric_limits<float>::epsilon() *
+                      (std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack);
   // The traversal's copies: the wide nodes' lanes and the leaves' packs.
   for (WideNode& wide : wide_) {
     for (std::uint32_t lane = 0; lane < wide.used; ++lane) {
@@ -376,13 +382,7 @@ core::Status TriangleBvh::query_segment_within(const Vec3& p0, const Vec3& p1, f
 
 float TriangleBvh::unused_slack(float deviation_m) const noexcept {
   if (!(deviation_m >= 0.0F && deviation_m < slack_m_)) return 0.0F;
-  // A stored bound is fl(reference ∓ slack), a test's fl(bound ∓ margin − p0) or fl(query ±
-  // unused): a few ulp of the coordinates each; the guard is 16 of them, with the coordinates'
-  // scale from the root box.
-  const Aabb& root = nodes_[0].box;
-  const float scale = std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack_m_;
-  const float guard = 16.0F * std::numeric_limits<float>::epsilon() * scale;
-  return std::max(0.0F, (slack_m_ - deviation_m) - guard);
+  return std::max(0.0F, (slack_m_ - deviation_m) - rounding_guard_m_);
 }
 
 core::Status TriangleBvh::query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,

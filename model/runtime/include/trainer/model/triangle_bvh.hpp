@@ -138,6 +138,7 @@ class TriangleBvh final : public TriangleBroadPhase {
   std::span<std::uint32_t> pack_ids_;  // 4 per pack: the triangle in each lane
   std::size_t depth_ = 0;
   float slack_m_ = 0.0F;
+  float rounding_guard_m_ = 0.0F;  // of query_segment_within / query_within, set by refit_boxes
   bool ready_ = false;
   std::uint64_t refit_count_ = 0;
   std::uint64_t refit_calls_ = 0;
