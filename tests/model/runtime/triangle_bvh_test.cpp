@@ -496,10 +496,18 @@ TEST(TriangleBvh, NoHeapInRefitAndQuery) {
     const Vec3 centre(0.004F, 0.0F, 0.00002F * static_cast<float>(cycle));
     if (!bvh.query(Aabb::around_point(centre, 0.001F), out, count).is_ok()) break;
     found += count;
+    if (!bvh.query_within(Aabb::around_point(centre, 0.001F), 0.0001F, out, count).is_ok()) break;
+    found += count;
+    if (!bvh.query_segment(centre, centre + Vec3(0.0F, 0.003F, 0.001F), 0.001F, out, count).is_ok()) break;
+    found += count;
+    if (!bvh.query_segment_within(centre, centre + Vec3(0.0F, 0.003F, 0.001F), 0.001F, 0.0001F, out, count).is_ok()) {
+      break;
+    }
+    found += count;
   }
   core::alloc::end_counting_this_thread();
   EXPECT_EQ(core::alloc::counted_allocations() - before, 0U);
-  EXPECT_GT(found, 2000U);
+  EXPECT_GT(found, 8000U);
 }
 
 }  // namespace
