@@ -16,7 +16,8 @@
 // hash's rebuild spike.
 //
 // Query (RT path): the triangles whose stored box overlaps the query box — an exact test per
-// triangle, no false candidate of a hash or a cell overhang — returned in increasing id order
+// triangle, no false candidate of a hash or a cell overhang; the descent runs over a 4-wide copy
+// of the tree, 4 boxes per SSE2 test (segment_box.hpp) — returned in increasing id order
 // (collected in a bitset, emitted by word), so the narrow phases see them in the same order
 // whatever the hierarchy or the refit history: the contacts found are bit-identical to a brute
 // force over all triangles in id order (tests/model/runtime/triangle_bvh_test.cpp).
