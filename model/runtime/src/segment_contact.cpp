@@ -76,8 +76,13 @@ core::Expected<SegmentSurfaceContact> SegmentSurfaceContact::create(const Segmen
   if (!candidate_ids) return fail(candidate_ids.error());
   auto candidates = arena.allocate_array<Candidate>(settings.max_candidates, "segment contact candidates");
   if (!candidates) return fail(candidates.error());
+  auto spheres = arena.allocate_array<TriangleSphere>(2 * static_cast<std::size_t>(settings.max_candidates),
+                                                      "segment contact triangle spheres");
+  if (!spheres) return fail(spheres.error());
 
   SegmentSurfaceContact contact;
+  contact.spheres_[0] = spheres->first(settings.max_candidates);
+  contact.spheres_[1] = spheres->subspan(settings.max_candidates);
   contact.settings_ = settings;
   contact.candidate_ids_ = candidate_ids.value();
   contact.candidates_ = candidates.value();
@@ -154,6 +159,7 @@ core::Status SegmentSurfaceContact::update(std::span<const ToolCapsule> capsules
                                            std::span<const float> surface_velocities_m_per_s,
                                            TriangleBroadPhase& grid) noexcept {
   clear_outputs();
+  previous_sphere_count_ = 0;  // the mesh may have moved since the last update
   if (capsules.size() > kMaxSegments) {
     return {core::StatusCode::invalid_argument, "segment contact: more than 3 capsules"};
   }
@@ -247,6 +253,13 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
   const float axis_squared = axis.squaredNorm();
   std::size_t count = 0;
   std::size_t best = 0;
+  // Each candidate's bounding sphere, kept for the next capsule of this update (the two jaws
+  // share most of their candidates): both lists are in increasing id order, so one pass
+  // finds the ones the previous capsule computed, the same floats.
+  const std::span<TriangleSphere> previous = spheres_[sphere_buffer_];
+  const std::span<TriangleSphere> spheres = spheres_[sphere_buffer_ ^ 1U];
+  std::size_t previous_index = 0;
+  std::size_t sphere_count = 0;
   for (std::size_t k = 0; k < id_count; ++k) {
     Candidate& candidate = candidates_[count];
     if (!triangle_vertices(mesh, candidate_ids_[k], candidate.vertices)) continue;
@@ -258,9 +271,20 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
     // Beyond reach, or beyond the best so far (a triangle containing the final closest point
     // is never beyond it, so the pseudo-normal still sees every incident triangle), skip.
     // tie_m covers the rounding of the bound.
-    const Vec3 centroid = (a + b + c) / 3.0F;
-    const float bounding_radius =
-        std::sqrt(std::max({(a - centroid).squaredNorm(), (b - centroid).squaredNorm(), (c - centroid).squaredNorm()}));
+    while (previous_index < previous_sphere_count_ && previous[previous_index].triangle < candidate_ids_[k]) {
+      ++previous_index;
+    }
+    TriangleSphere& sphere = spheres[sphere_count++];
+    if (previous_index < previous_sphere_count_ && previous[previous_index].triangle == candidate_ids_[k]) {
+      sphere = previous[previous_index];
+    } else {
+      sphere.triangle = candidate_ids_[k];
+      sphere.centroid = (a + b + c) / 3.0F;
+      sphere.radius = std::sqrt(std::max({(a - sphere.centroid).squaredNorm(), (b - sphere.centroid).squaredNorm(),
+                                          (c - sphere.centroid).squaredNorm()}));
+    }
+    const Vec3& centroid = sphere.centroid;
+    const float bounding_radius = sphere.radius;
     const float along =
         axis_squared > 0.0F ? std::clamp((centroid - capsule.start_m).dot(axis) / axis_squared, 0.0F, 1.0F) : 0.0F;
     const float lower_bound = (capsule.start_m + along * axis - centroid).norm() - bounding_radius;
@@ -289,6 +313,8 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
     }
     ++count;
   }
+  sphere_buffer_ ^= 1U;
+  previous_sphere_count_ = sphere_count;
   if (count == 0) {
     side = 0;  // nothing within reach: the contact (and the memory of its side) has ended
     return status;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,60 @@ struct BvhBuilder {
     nodes[index].first = static_cast<std::uint32_t>(nodes.size());  // the right child
     build(first + half, count - half, level + 1);
   }
+};
+
+// The wide tree over the binary one (setup path): a wide node takes the binary node's children,
+// each replaced by its own two children when it is internal; a leaf's triangles go into packs
+// of 4 (lanes past its count unused).
+template <class WideNode>
+struct WideBuilder {
+  const std::vector<std::pair<std::uint32_t, std::uint32_t>>& binary;
+  std::span<const std::uint32_t> order;
+  std::vector<WideNode> nodes;
+  std::vector<std::uint32_t> pack_ids;  // kUnusedLane past a leaf's count
+  std::size_t depth = 0;
+
+  bool leaf(std::uint32_t n) const { return binary[n].second > 0; }
+
+  std::uint32_t build(std::uint32_t n, std::size_t level) {
+    depth = std::max(depth, level + 1);
+    std::uint32_t lanes[4];
+    std::uint32_t used = 0;
+    if (leaf(n)) {
+      lanes[used++] = n;
+    } else {
+      for (const std::uint32_t child : {n + 1, binary[n].first}) {
+        if (leaf(child)) {
+          lanes[used++] = child;
+        } else {
+          lanes[used++] = child + 1;
+          lanes[used++] = binary[child].first;
+        }
+      }
+    }
+    const auto index = static_cast<std::uint32_t>(nodes.size());
+    nodes.emplace_back();
+    nodes[index].used = used;
+    for (std::uint32_t k = 0; k < used; ++k) {
+      const std::uint32_t lane = lanes[k];
+      nodes[index].binary[k] = lane;
+      if (leaf(lane)) {
+        const std::uint32_t first = binary[lane].first;
+        const std::uint32_t count = binary[lane].second;
+        const std::uint32_t packs = (count + 3) / 4;
+        nodes[index].child[k] = static_cast<std::uint32_t>(pack_ids.size() / 4);
+        nodes[index].packs[k] = packs;
+        for (std::uint32_t i = 0; i < 4 * packs; ++i) pack_ids.push_back(i < count ? order[first + i] : kUnusedLane);
+      } else {
+        const std::uint32_t child = build(lane, level + 1);
+        nodes[index].child[k] = child;
+        nodes[index].packs[k] = 0;
+      }
+    }
+    return index;
+  }
+
+  static constexpr std::uint32_t kUnusedLane = 0xFFFFFFFFU;
 };
 
 }  // namespace
@@ -119,6 +174,15 @@ core::Expected<TriangleBvh> TriangleBvh::create(std::span<const float> positions
   if (!reference) return std::move(reference).error();
   auto bits = carve_bvh<std::uint64_t>(arena, (triangle_count + 63) / 64, "bvh hit bits");
   if (!bits) return std::move(bits).error();
+  WideBuilder<WideNode> wide{builder.nodes, builder.order, {}, {}, 0};
+  wide.nodes.reserve(builder.nodes.size());
+  (void)wide.build(0, 0);
+  auto wide_nodes = carve_bvh<WideNode>(arena, wide.nodes.size(), "bvh wide nodes");
+  if (!wide_nodes) return std::move(wide_nodes).error();
+  auto packs = carve_bvh<AabbPack4>(arena, wide.pack_ids.size() / 4, "bvh leaf packs");
+  if (!packs) return std::move(packs).error();
+  auto pack_ids = carve_bvh<std::uint32_t>(arena, wide.pack_ids.size(), "bvh pack ids");
+  if (!pack_ids) return std::move(pack_ids).error();
   bvh.nodes_ = nodes.value();
   for (std::size_t n = 0; n < builder.nodes.size(); ++n) {
     bvh.nodes_[n] = Node{kEmptyBox, builder.nodes[n].first, builder.nodes[n].second};
@@ -129,6 +193,17 @@ core::Expected<TriangleBvh> TriangleBvh::create(std::span<const float> positions
   bvh.triangle_boxes_ = boxes.value();
   bvh.reference_ = reference.value();
   bvh.hit_bits_ = bits.value();
+  bvh.wide_ = wide_nodes.value();
+  std::copy(wide.nodes.begin(), wide.nodes.end(), bvh.wide_.begin());
+  for (WideNode& node : bvh.wide_) {
+    for (int lane = 0; lane < 4; ++lane) node.boxes.clear(lane);
+  }
+  bvh.leaf_packs_ = packs.value();
+  for (AabbPack4& pack : bvh.leaf_packs_) {
+    for (int lane = 0; lane < 4; ++lane) pack.clear(lane);
+  }
+  bvh.pack_ids_ = pack_ids.value();
+  std::copy(wide.pack_ids.begin(), wide.pack_ids.end(), bvh.pack_ids_.begin());
   std::fill(bvh.hit_bits_.begin(), bvh.hit_bits_.end(), std::uint64_t{0});
   bvh.depth_ = builder.depth;
   if (const core::Status status = bvh.refit(positions_m, 0.0F); !status.is_ok()) {
@@ -161,6 +236,24 @@ void TriangleBvh::refit_boxes() noexcept {
       const Aabb& left = nodes_[n + 1].box;
       const Aabb& right = nodes_[node.first].box;
       node.box = Aabb{left.min_m.cwiseMin(right.min_m), left.max_m.cwiseMax(right.max_m)};
+    }
+  }
+  // A stored bound is fl(reference ∓ slack), a test's fl(bound ∓ margin − p0) or fl(query ±
+  // unused slack): a few ulp of the coordinates each; the guard of the stated-deviation queries
+  // is 16 of them, with the coordinates' scale from the root box.
+  const Aabb& root = nodes_[0].box;
+  rounding_guard_m_ = 16.0F * std::numeric_limits<float>::epsilon() *
+                      (std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack);
+  // The traversal's copies: the wide nodes' lanes and the leaves' packs.
+  for (WideNode& wide : wide_) {
+    for (std::uint32_t lane = 0; lane < wide.used; ++lane) {
+      wide.boxes.set(static_cast<int>(lane), nodes_[wide.binary[lane]].box);
+    }
+  }
+  for (std::size_t pack = 0; pack < leaf_packs_.size(); ++pack) {
+    for (int lane = 0; lane < 4; ++lane) {
+      const std::uint32_t id = pack_ids_[4 * pack + static_cast<std::size_t>(lane)];
+      if (id < triangle_boxes_.size()) leaf_packs_[pack].set(lane, triangle_boxes_[id]);
     }
   }
 }
@@ -199,33 +292,39 @@ core::Status TriangleBvh::refit(std::span<const float> positions_m, float slack_
   return core::Status::ok();
 }
 
-template <class Accept>
-core::Status TriangleBvh::collect(Accept&& accept, std::span<std::uint32_t> out_ids,
+template <class Accept4>
+core::Status TriangleBvh::collect(Accept4&& accept4, std::span<std::uint32_t> out_ids,
                                   std::size_t& out_count) noexcept {
   out_count = 0;
   if (!ready_) return core::Status::ok();
-  std::uint32_t stack[kMaxDepth + 1];
+  // A pop pushes at most 4 and the wide tree is at most depth_ levels deep.
+  std::uint32_t stack[3 * kMaxDepth + 4];
   std::size_t stack_size = 0;
   stack[stack_size++] = 0;
   std::size_t low_word = hit_bits_.size();
   std::size_t high_word = 0;
   while (stack_size > 0) {
-    const std::uint32_t index = stack[--stack_size];
-    const Node& node = nodes_[index];
-    if (!accept(node.box)) continue;
-    if (node.count > 0) {
-      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
-        const std::uint32_t id = order_[i];
-        if (!accept(triangle_boxes_[id])) continue;
-        const std::size_t word = id >> 6U;
-        hit_bits_[word] |= std::uint64_t{1} << (id & 63U);
-        low_word = std::min(low_word, word);
-        high_word = std::max(high_word, word);
+    const WideNode& node = wide_[stack[--stack_size]];
+    unsigned lanes = accept4(node.boxes);
+    while (lanes != 0) {
+      const auto lane = static_cast<std::size_t>(std::countr_zero(lanes));
+      lanes &= lanes - 1;
+      if (node.packs[lane] == 0) {
+        stack[stack_size++] = node.child[lane];
+        continue;
       }
-    } else {
-      // Depth-first, left first; the stack never holds more than one node per level.
-      stack[stack_size++] = node.first;
-      stack[stack_size++] = index + 1;
+      for (std::uint32_t pack = node.child[lane]; pack < node.child[lane] + node.packs[lane]; ++pack) {
+        unsigned hits = accept4(leaf_packs_[pack]);
+        while (hits != 0) {
+          const auto bit = static_cast<std::size_t>(std::countr_zero(hits));
+          hits &= hits - 1;
+          const std::uint32_t id = pack_ids_[4 * static_cast<std::size_t>(pack) + bit];
+          const std::size_t word = id >> 6U;
+          hit_bits_[word] |= std::uint64_t{1} << (id & 63U);
+          low_word = std::min(low_word, word);
+          high_word = std::max(high_word, word);
+        }
+      }
     }
   }
   bool truncated = false;
@@ -252,36 +351,9 @@ core::Status TriangleBvh::query(const Aabb& box, std::span<std::uint32_t> out_id
   if (!box.min_m.allFinite() || !box.max_m.allFinite() || (box.min_m.array() > box.max_m.array()).any()) {
     return {core::StatusCode::invalid_argument, "triangle bvh: query box non-finite or inverted"};
   }
-  return collect([&box](const Aabb& stored) { return stored.overlaps(box); }, out_ids, out_count);
+  return collect([&box](const AabbPack4& pack) { return SegmentBoxTest::overlaps4(pack, box); }, out_ids,
+                 out_count);
 }
-
-namespace {
-
-// Does the segment p0 + t·d, t in [0, 1], pass through `box` grown by `margin` on every side?
-// Slab clipping; t intervals that miss by less than kSlabTolerance count as a hit (rounding).
-constexpr float kSlabTolerance = 1e-6F;
-bool segment_meets_grown_box(const Vec3& p0, const Vec3& d, const Aabb& box, float margin) noexcept {
-  float t_low = 0.0F;
-  float t_high = 1.0F;
-  for (int axis = 0; axis < 3; ++axis) {
-    const float low = box.min_m[axis] - margin;
-    const float high = box.max_m[axis] + margin;
-    if (d[axis] == 0.0F) {
-      if (p0[axis] < low || p0[axis] > high) return false;
-      continue;
-    }
-    const float inverse = 1.0F / d[axis];
-    float t1 = (low - p0[axis]) * inverse;
-    float t2 = (high - p0[axis]) * inverse;
-    if (t1 > t2) std::swap(t1, t2);
-    t_low = std::max(t_low, t1);
-    t_high = std::min(t_high, t2);
-    if (t_low > t_high + kSlabTolerance) return false;
-  }
-  return true;
-}
-
-}  // namespace
 
 core::Status TriangleBvh::query_segment(const Vec3& p0, const Vec3& p1, float margin_m,
                                         std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
@@ -292,11 +364,40 @@ core::Status TriangleBvh::query_segment(const Vec3& p0, const Vec3& p1, float ma
   // The margin grown a little so that rounding in the clipping never drops a triangle at
   // exactly margin_m; the segment's own box first (cheap, and exact for a degenerate segment).
   const float margin = margin_m * (1.0F + 1e-5F) + 1e-9F;
-  const Aabb around = Aabb::around_segment(p0, p1, margin);
-  const Vec3 d = p1 - p0;
-  return collect(
-      [&](const Aabb& stored) { return stored.overlaps(around) && segment_meets_grown_box(p0, d, stored, margin); },
-      out_ids, out_count);
+  const SegmentBoxTest test(p0, p1, margin);
+  return collect([&test](const AabbPack4& pack) { return test.meets4(pack); }, out_ids, out_count);
+}
+
+core::Status TriangleBvh::query_segment_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
+                                               std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
+  out_count = 0;
+  if (!p0.allFinite() || !p1.allFinite() || !(margin_m >= 0.0F) || !std::isfinite(margin_m)) {
+    return {core::StatusCode::invalid_argument, "triangle bvh: segment non-finite or margin negative"};
+  }
+  if (!ready_) return core::Status::ok();
+  const float margin = margin_m * (1.0F + 1e-5F) + 1e-9F - unused_slack(deviation_m);
+  const SegmentBoxTest test(p0, p1, margin);
+  return collect([&test](const AabbPack4& pack) { return test.meets4(pack); }, out_ids, out_count);
+}
+
+float TriangleBvh::unused_slack(float deviation_m) const noexcept {
+  if (!(deviation_m >= 0.0F && deviation_m < slack_m_)) return 0.0F;
+  return std::max(0.0F, (slack_m_ - deviation_m) - rounding_guard_m_);
+}
+
+core::Status TriangleBvh::query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,
+                                       std::size_t& out_count) noexcept {
+  out_count = 0;
+  if (!box.min_m.allFinite() || !box.max_m.allFinite() || (box.min_m.array() > box.max_m.array()).any()) {
+    return {core::StatusCode::invalid_argument, "triangle bvh: query box non-finite or inverted"};
+  }
+  if (!ready_) return core::Status::ok();
+  // A stored box shrunk by u overlaps `box` exactly when the stored box overlaps `box` shrunk
+  // by u, even where that inverts it (each axis: min + u ≤ q_max ⇔ min ≤ q_max − u).
+  const float unused = unused_slack(deviation_m);
+  const Aabb shrunk{(box.min_m.array() + unused).matrix(), (box.max_m.array() - unused).matrix()};
+  return collect([&shrunk](const AabbPack4& pack) { return SegmentBoxTest::overlaps4(pack, shrunk); }, out_ids,
+                 out_count);
 }
 
 }  // namespace trainer::model

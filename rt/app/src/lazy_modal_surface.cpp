@@ -272,11 +272,13 @@ bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& m
   }
   if (lazy_allowed_ && reference_valid_) {
     const double bound = motion_bound();
-    const double budget =
-        0.999 * static_cast<double>(surface.grid_slack_m) - used_slack_m_ - rounding_margin();
+    const double rounding = rounding_margin();
+    const double budget = 0.999 * static_cast<double>(surface.grid_slack_m) - used_slack_m_ - rounding;
     last_bound_m_ = bound;
     last_budget_m_ = budget;
     if (bound <= budget) {  // false for a non-finite bound: the full path refuses it
+      // Every vertex is within this of the hierarchy's reference (rounded up to float).
+      within_m_ = std::nextafter(static_cast<float>(used_slack_m_ + bound + rounding), INFINITY);
       ++lazy_steps_;
       surface.surface_ready = true;
       return true;
@@ -284,6 +286,7 @@ bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& m
   }
   // The full path: every vertex, then the refit (which may still find nothing beyond slack).
   ++full_steps_;
+  within_m_ = -1.0F;
   surface.surface_ready = false;
   if (lazy_allowed_) {
     // Σ_l R_{k,l} F_l for every surface node at once (element by element in the same order as
@@ -327,6 +330,7 @@ bool LazyModalSurface::finish_full(ContactSurface& surface) noexcept {
   // hierarchy has left for them (slack − their distance from its own reference).
   if (!surface.refit_grid()) return false;  // refused (non-finite): the hierarchy is empty
   used_slack_m_ = static_cast<double>(surface.grid->last_deviation_m());
+  within_m_ = surface.grid->last_deviation_m();  // these positions are the ones the refit saw
   std::copy(modes_.begin(), modes_.end(), reference_modes_.begin());
   std::copy(loads_.begin(), loads_.begin() + static_cast<std::ptrdiff_t>(load_count_),
             reference_loads_.begin());
@@ -357,7 +361,7 @@ core::Status LazyModalSurface::query(const model::Aabb& box, std::span<std::uint
                                      std::size_t& out_count) noexcept {
   out_count = 0;
   if (surface_ == nullptr || !surface_->grid) return core::Status::ok();
-  const core::Status status = surface_->grid->query(box, out_ids, out_count);
+  const core::Status status = surface_->grid->query_within(box, within_m_, out_ids, out_count);
   ensure_candidates(out_ids.first(std::min(out_count, out_ids.size())));
   return status;
 }
@@ -367,7 +371,9 @@ core::Status LazyModalSurface::query_segment(const model::Vec3& p0, const model:
                                              std::size_t& out_count) noexcept {
   out_count = 0;
   if (surface_ == nullptr || !surface_->grid) return core::Status::ok();
-  const core::Status status = surface_->grid->query_segment(p0, p1, margin_m, out_ids, out_count);
+  // Boxes taken as grown by this step's bound on the motion instead of the slack (same
+  // answer for every triangle within margin_m, fewer candidates and vertices to compute).
+  const core::Status status = surface_->grid->query_segment_within(p0, p1, margin_m, within_m_, out_ids, out_count);
   ensure_candidates(out_ids.first(std::min(out_count, out_ids.size())));
   return status;
 }

@@ -192,6 +192,98 @@ TEST(TriangleBvh, SegmentQueryKeepsEveryTriangleWithinTheMargin) {
   EXPECT_EQ(bvh.query_segment(Vec3::Zero(), Vec3::Zero(), -1.0F, out, count).code(), core::StatusCode::invalid_argument);
 }
 
+// query_segment_within: the mesh moved since the last refit (less than the slack: no refit; a
+// collapsed vertex moves farther: a refit, then deviation 0), the caller states by how much (the true largest coordinate change, or more); every triangle
+// within the margin is still returned, the list is a subset of query_segment()'s and clearly
+// shorter; a deviation outside [0, slack] is the plain query. The same for query_within (boxes).
+TEST(TriangleBvh, SegmentQueryWithinAStatedDeviationKeepsEveryTriangleWithinTheMargin) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> u(0.0F, 1.0F);
+  core::Arena arena = bvh_arena();
+  BvhMesh mesh = bvh_tube(21, 16);
+  auto created = TriangleBvh::create(mesh.rest, mesh.triangles, arena);
+  ASSERT_TRUE(created.has_value());
+  TriangleBvh bvh = std::move(created).value();
+  const float slack = 0.0015F;
+  ASSERT_TRUE(bvh.refit(mesh.rest, slack).is_ok());
+  std::vector<float> reference = mesh.rest;  // the positions of the last refit
+  std::vector<std::uint32_t> plain(640);
+  std::vector<std::uint32_t> tight(640);
+  std::size_t within = 0;
+  std::size_t plain_total = 0;
+  std::size_t tight_total = 0;
+  std::size_t box_within = 0;
+  std::size_t box_plain_total = 0;
+  std::size_t box_tight_total = 0;
+  for (int cycle = 0; cycle < 10; ++cycle) {
+    bvh_deform(mesh, rng, cycle % 2 == 1);  // ≤ 1.2 mm per coordinate, more where collapsed
+    if (cycle % 3 == 2) mesh.positions = mesh.rest;
+    const std::uint64_t refits = bvh.refit_count();
+    ASSERT_TRUE(bvh.refit(mesh.positions, slack).is_ok());
+    if (bvh.refit_count() != refits) reference = mesh.positions;  // moved beyond the slack
+    float deviation = 0.0F;
+    for (std::size_t i = 0; i < mesh.rest.size(); ++i) {
+      deviation = std::max(deviation, std::abs(mesh.positions[i] - reference[i]));
+    }
+    ASSERT_EQ(bvh.last_deviation_m(), deviation);
+    const float stated = cycle % 4 == 1 ? deviation + 1e-4F : deviation;
+    for (int query = 0; query < kBvhSegmentQueries; ++query) {
+      const Vec3 p0(0.02F * (u(rng) - 0.5F), 0.02F * (u(rng) - 0.5F), 0.05F * u(rng) - 0.005F);
+      Vec3 p1(0.02F * (u(rng) - 0.5F), 0.02F * (u(rng) - 0.5F), 0.05F * u(rng) - 0.005F);
+      if (query % 10 == 0) p1 = p0;
+      if (query % 10 == 1) p1 = Vec3(p0.x(), p0.y(), p0.z() + 0.01F);
+      const float margin = query % 7 == 0 ? 0.0F : 0.003F * u(rng);
+      std::size_t plain_count = 0;
+      std::size_t count = 0;
+      ASSERT_TRUE(bvh.query_segment(p0, p1, margin, plain, plain_count).is_ok());
+      ASSERT_TRUE(bvh.query_segment_within(p0, p1, margin, stated, tight, count).is_ok());
+      const auto begin = tight.begin();
+      const auto end = tight.begin() + static_cast<std::ptrdiff_t>(count);
+      ASSERT_TRUE(std::is_sorted(begin, end));
+      ASSERT_TRUE(std::includes(plain.begin(), plain.begin() + static_cast<std::ptrdiff_t>(plain_count), begin, end));
+      for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+        const Vec3 a = mesh.vertex(mesh.triangles[3 * t]);
+        const Vec3 b = mesh.vertex(mesh.triangles[3 * t + 1]);
+        const Vec3 c = mesh.vertex(mesh.triangles[3 * t + 2]);
+        const float distance = closest_points_segment_triangle(p0, p1, a, b, c).distance_m;
+        if (!(distance < margin) && !(margin == 0.0F && distance == 0.0F)) continue;
+        ++within;
+        ASSERT_TRUE(std::binary_search(begin, end, t)) << "missed triangle " << t << " query " << query;
+      }
+      plain_total += plain_count;
+      tight_total += count;
+      // The box query with the same statement: every triangle whose current box overlaps.
+      const Aabb box = Aabb::around_point(p0, query % 5 == 0 ? 0.0F : 0.0015F * u(rng));
+      std::size_t box_plain = 0;
+      std::size_t box_tight = 0;
+      ASSERT_TRUE(bvh.query(box, plain, box_plain).is_ok());
+      ASSERT_TRUE(bvh.query_within(box, stated, tight, box_tight).is_ok());
+      ASSERT_TRUE(std::includes(plain.begin(), plain.begin() + static_cast<std::ptrdiff_t>(box_plain), tight.begin(),
+                                tight.begin() + static_cast<std::ptrdiff_t>(box_tight)));
+      for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+        if (!mesh.box(t).overlaps(box)) continue;
+        ++box_within;
+        ASSERT_TRUE(std::binary_search(tight.begin(), tight.begin() + static_cast<std::ptrdiff_t>(box_tight), t)) << t;
+      }
+      box_plain_total += box_plain;
+      box_tight_total += box_tight;
+      ASSERT_TRUE(bvh.query_segment(p0, p1, margin, plain, plain_count).is_ok());
+      // Outside [0, slack]: the plain answer.
+      std::size_t ignored = 0;
+      ASSERT_TRUE(bvh.query_segment_within(p0, p1, margin, query % 2 == 0 ? -1.0F : slack, tight, ignored).is_ok());
+      ASSERT_EQ(ignored, plain_count);
+      ASSERT_TRUE(std::equal(tight.begin(), tight.begin() + static_cast<std::ptrdiff_t>(ignored), plain.begin()));
+    }
+  }
+  EXPECT_GT(within, static_cast<std::size_t>(3 * kBvhSegmentQueries));
+  EXPECT_LT(tight_total, plain_total - plain_total / 5) << "a stated deviation should cut candidates";
+  EXPECT_GT(box_within, static_cast<std::size_t>(2 * kBvhSegmentQueries));
+  EXPECT_LT(box_tight_total, box_plain_total - box_plain_total / 5);
+  std::size_t count = 0;
+  EXPECT_EQ(bvh.query_segment_within(Vec3::Zero(), Vec3(NAN, 0, 0), 0.001F, 0.0F, tight, count).code(),
+            core::StatusCode::invalid_argument);
+}
+
 // Built and refitted with a slack at rest, the hierarchy still returns every triangle whose
 // box overlaps after the vertices move less than the slack, without refitting; one coordinate
 // beyond it refits.
@@ -404,10 +496,18 @@ TEST(TriangleBvh, NoHeapInRefitAndQuery) {
     const Vec3 centre(0.004F, 0.0F, 0.00002F * static_cast<float>(cycle));
     if (!bvh.query(Aabb::around_point(centre, 0.001F), out, count).is_ok()) break;
     found += count;
+    if (!bvh.query_within(Aabb::around_point(centre, 0.001F), 0.0001F, out, count).is_ok()) break;
+    found += count;
+    if (!bvh.query_segment(centre, centre + Vec3(0.0F, 0.003F, 0.001F), 0.001F, out, count).is_ok()) break;
+    found += count;
+    if (!bvh.query_segment_within(centre, centre + Vec3(0.0F, 0.003F, 0.001F), 0.001F, 0.0001F, out, count).is_ok()) {
+      break;
+    }
+    found += count;
   }
   core::alloc::end_counting_this_thread();
   EXPECT_EQ(core::alloc::counted_allocations() - before, 0U);
-  EXPECT_GT(found, 2000U);
+  EXPECT_GT(found, 8000U);
 }
 
 }  // namespace

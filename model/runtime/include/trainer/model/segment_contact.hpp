@@ -174,6 +174,13 @@ class SegmentSurfaceContact {
     float obliquity;  // sine of the angle between q − p and the triangle's normal; < 0 not yet computed
   };
 
+  // A candidate's bounding sphere (centroid, radius about it) of this update.
+  struct TriangleSphere {
+    std::uint32_t triangle;
+    Vec3 centroid;
+    float radius;
+  };
+
   SegmentSurfaceContact() = default;
   static bool better(const Candidate& candidate, const Candidate& current, float tie_m) noexcept;
   static bool needs_obliquity(const Candidate& candidate, const Candidate& current, float tie_m) noexcept;
@@ -188,6 +195,9 @@ class SegmentSurfaceContact {
   SegmentContactSettings settings_{};
   std::span<std::uint32_t> candidate_ids_;  // grid query output
   std::span<Candidate> candidates_;         // within reach, for the current segment
+  std::array<std::span<TriangleSphere>, 2> spheres_{};  // the previous segment's, this one's
+  unsigned sphere_buffer_ = 0;               // spheres_[sphere_buffer_]: the previous segment's
+  std::size_t previous_sphere_count_ = 0;
   std::array<SegmentContact, kMaxSegments> contacts_{};
   std::array<ToolForce, kMaxSegments> tool_forces_{};
   std::array<NodeForce, kMaxNodeForces> node_forces_{};

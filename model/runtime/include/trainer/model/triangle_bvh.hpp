@@ -16,7 +16,8 @@
 // hash's rebuild spike.
 //
 // Query (RT path): the triangles whose stored box overlaps the query box — an exact test per
-// triangle, no false candidate of a hash or a cell overhang — returned in increasing id order
+// triangle, no false candidate of a hash or a cell overhang; the descent runs over a 4-wide copy
+// of the tree, 4 boxes per SSE2 test (segment_box.hpp) — returned in increasing id order
 // (collected in a bitset, emitted by word), so the narrow phases see them in the same order
 // whatever the hierarchy or the refit history: the contacts found are bit-identical to a brute
 // force over all triangles in id order (tests/model/runtime/triangle_bvh_test.cpp).
@@ -32,6 +33,7 @@
 #include "trainer/core/expected.hpp"
 #include "trainer/core/status.hpp"
 #include "trainer/model/broad_phase.hpp"
+#include "trainer/model/segment_box.hpp"
 
 namespace trainer::model {
 
@@ -71,6 +73,19 @@ class TriangleBvh final : public TriangleBroadPhase {
   core::Status query_segment(const Vec3& p0, const Vec3& p1, float margin_m, std::span<std::uint32_t> out_ids,
                              std::size_t& out_count) noexcept override;
 
+  // query_segment() for a caller that knows how far the mesh is from the positions of the last
+  // refit: every vertex within deviation_m of them, per coordinate (0 ≤ deviation_m ≤ the
+  // slack; LazyModalSurface's motion bound, or last_deviation_m() right after a refit). The
+  // stored boxes are then taken as grown by deviation_m instead of the slack (the query's
+  // margin reduced by the difference, plus a rounding guard), so fewer triangles come back and
+  // still every one within margin_m. A deviation_m outside [0, slack] is ignored (the slack).
+  core::Status query_segment_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
+                                    std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  // query() with the same statement: every triangle whose current AABB overlaps `box` is
+  // returned (a subset of query()'s list).
+  core::Status query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,
+                            std::size_t& out_count) noexcept;
+
   std::size_t triangle_count() const noexcept { return triangle_boxes_.size(); }
   std::size_t vertex_count() const noexcept { return reference_.size() / 3; }
   std::size_t node_count() const noexcept { return nodes_.size(); }
@@ -92,13 +107,26 @@ class TriangleBvh final : public TriangleBroadPhase {
     std::uint32_t first = 0;  // leaf: first slot in order_; internal: index of the right child
     std::uint32_t count = 0;  // leaf: triangles (≥ 1); internal: 0 (the left child is index + 1)
   };
+  // The traversal's tree: the binary tree with every other level folded in, so a node has up
+  // to 4 children (the binary node's grandchildren, or a child leaf itself), their boxes side
+  // by side for one 4-wide test (segment_box.hpp). Boxes copied from nodes_ at each refit.
+  struct WideNode {
+    AabbPack4 boxes;                  // unused lanes inverted (never pass)
+    std::uint32_t child[4] = {};      // internal: wide node index; leaf: its first pack
+    std::uint32_t packs[4] = {};      // leaf: its pack count (≥ 1); internal or unused: 0
+    std::uint32_t binary[4] = {};     // the binary node of each used lane
+    std::uint32_t used = 0;           // lanes 0..used-1
+  };
 
   TriangleBvh() = default;
   void refit_boxes() noexcept;
-  // The traversal of query() and query_segment(): `accept(box)` says whether a node or
-  // triangle box may hold an answer.
-  template <class Accept>
-  core::Status collect(Accept&& accept, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  // How much of the slack a stated deviation leaves unused, less the rounding guard (≥ 0; 0
+  // for a deviation outside [0, slack)).
+  float unused_slack(float deviation_m) const noexcept;
+  // The traversal of query() and query_segment(): `accept4(pack)` gives the lanes of a pack of
+  // 4 node or triangle boxes that may hold an answer.
+  template <class Accept4>
+  core::Status collect(Accept4&& accept4, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
 
   std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
   std::span<Node> nodes_;
@@ -106,8 +134,12 @@ class TriangleBvh final : public TriangleBroadPhase {
   std::span<Aabb> triangle_boxes_;     // per triangle, grown by slack_m_
   std::span<float> reference_;         // 3n: the positions of the last refit
   std::span<std::uint64_t> hit_bits_;  // per triangle, one query's hits (all zero between queries)
+  std::span<WideNode> wide_;           // root first
+  std::span<AabbPack4> leaf_packs_;    // each leaf's triangle boxes, 4 per pack (stored boxes)
+  std::span<std::uint32_t> pack_ids_;  // 4 per pack: the triangle in each lane
   std::size_t depth_ = 0;
   float slack_m_ = 0.0F;
+  float rounding_guard_m_ = 0.0F;  // of query_segment_within / query_within, set by refit_boxes
   bool ready_ = false;
   std::uint64_t refit_count_ = 0;
   std::uint64_t refit_calls_ = 0;

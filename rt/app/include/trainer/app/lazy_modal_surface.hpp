@@ -123,6 +123,9 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::size_t reference_load_count_ = 0;
   bool reference_valid_ = false;
   double used_slack_m_ = 0.0;  // the reference positions' distance from the hierarchy's
+  // This step's bound on every vertex's distance (per coordinate) from the hierarchy's
+  // reference positions, for TriangleBvh::query_segment_within; < 0 unknown (the slack).
+  float within_m_ = -1.0F;
   bool full_failed_ = false;
 
   std::span<float> full_residual_;  // the full path's Σ_l R_kl F_l over the surface, 3s
