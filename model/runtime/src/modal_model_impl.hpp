@@ -677,7 +677,6 @@ core::Status BasicModalModel<Scalar>::reconstruct(std::span<Scalar> out_3n) cons
   if (out_3n.size() < 3 * static_cast<std::size_t>(node_count_)) {
     return {core::StatusCode::invalid_argument, "modal model: reconstruct output shorter than 3n"};
   }
-  const std::size_t rows = 3 * static_cast<std::size_t>(node_count_);
   if (static_correction_ && active_modes_ < stored_modes_ && stepped_count_ > 0) {
     // The inactive modes' static flexibility couples every loaded node with every node through
     // the stored shapes: rare (a model run below its stored mode count), done per node.
@@ -688,17 +687,11 @@ core::Status BasicModalModel<Scalar>::reconstruct(std::span<Scalar> out_3n) cons
     }
     return core::Status::ok();
   }
-  using RowMajorMatrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
-  const Eigen::Map<const RowMajorMatrix> shapes(mode_shapes_.data(),
-                                                static_cast<Eigen::Index>(rows),
-                                                static_cast<Eigen::Index>(stored_modes_));
   for (std::size_t i = 0; i < active_modes_; ++i)
     reconstruct_modes_[i] = static_cast<Scalar>(x_[i]);
-  const Eigen::Map<const Vector> modes(reconstruct_modes_.data(),
-                                       static_cast<Eigen::Index>(active_modes_));
-  Eigen::Map<Vector> out(out_3n.data(), static_cast<Eigen::Index>(rows));
-  out.noalias() = shapes.leftCols(static_cast<Eigen::Index>(active_modes_)) * modes;
+  // Φ q by the kernel the lazy contact surface shares (modal_shape_rows.hpp).
+  shape_rows(nullptr, node_count_, reconstruct_modes_.data(), out_3n.data());
   if (!static_correction_ || stepped_count_ == 0) return core::Status::ok();
   // Σ_l R_{k,l} F_l for every surface node k: R symmetric, so column block l is the transpose
   // of row block l — three contiguous rows of length 3s per loaded node.
@@ -727,3 +720,5 @@ core::Status BasicModalModel<Scalar>::reconstruct(std::span<Scalar> out_3n) cons
 }
 
 }  // namespace trainer::model
+
+#include "modal_shape_rows.hpp"  // IWYU pragma: keep (BasicModalModel::shape_rows)

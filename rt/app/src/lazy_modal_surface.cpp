@@ -4,45 +4,13 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "trainer/app/contact_surface.hpp"
 
 namespace trainer::app {
 namespace {
-
-// Φ_node q for the three rows of a node (row-major, `stride` floats apart), each row summed
-// exactly as Eigen 3.4's row-major GEMV sums a row in its multi-row loops (the path
-// ModalModel::reconstruct takes): Eigen's own packets, pmadd over whole packets, predux, then
-// the tail in order, added to a zeroed result. Inlined into both the lazy and the full path.
-inline void lazy_surface_node_dot(const float* rows, std::size_t stride, const float* q,
-                                  std::size_t n, float* out) noexcept {
-  using Packet = Eigen::internal::packet_traits<float>::type;
-  constexpr std::size_t kSize = static_cast<std::size_t>(Eigen::internal::packet_traits<float>::size);
-  const float* row0 = rows;
-  const float* row1 = rows + stride;
-  const float* row2 = rows + 2 * stride;
-  Packet c0 = Eigen::internal::pset1<Packet>(0.0F);
-  Packet c1 = c0;
-  Packet c2 = c0;
-  std::size_t j = 0;
-  for (; j + kSize <= n; j += kSize) {
-    const Packet b = Eigen::internal::ploadu<Packet>(q + j);
-    c0 = Eigen::internal::pmadd(Eigen::internal::ploadu<Packet>(row0 + j), b, c0);
-    c1 = Eigen::internal::pmadd(Eigen::internal::ploadu<Packet>(row1 + j), b, c1);
-    c2 = Eigen::internal::pmadd(Eigen::internal::ploadu<Packet>(row2 + j), b, c2);
-  }
-  float cc0 = Eigen::internal::predux(c0);
-  float cc1 = Eigen::internal::predux(c1);
-  float cc2 = Eigen::internal::predux(c2);
-  for (; j < n; ++j) {
-    cc0 += row0[j] * q[j];
-    cc1 += row1[j] * q[j];
-    cc2 += row2[j] * q[j];
-  }
-  out[0] = 0.0F + cc0;  // the GEMV adds into a zeroed result: −0 becomes +0 as there
-  out[1] = 0.0F + cc1;
-  out[2] = 0.0F + cc2;
-}
 
 double lazy_surface_norm3(const float (&v)[3]) noexcept {
   const double x = v[0];
@@ -53,127 +21,36 @@ double lazy_surface_norm3(const float (&v)[3]) noexcept {
 
 }  // namespace
 
-core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalModelData& data,
-                                                          const model::ModalModel& modal,
-                                                          core::Arena& arena) {
-  LazyModalSurface lazy;
-  lazy.rest_ = data.rest_positions;
-  lazy.mode_shapes_ = data.mode_shapes;
-  lazy.node_count_ = data.node_count;
-  lazy.stored_modes_ = data.mode_count;
-  lazy.active_modes_ = modal.active_mode_count();
-  lazy.static_correction_ = modal.static_correction();
-  lazy.surface_count_ = static_cast<std::uint32_t>(data.surface_nodes.size());
-  if (lazy.static_correction_) lazy.residual_ = data.residual_compliance;
-  lazy.lazy_allowed_ = !(lazy.static_correction_ && lazy.active_modes_ < lazy.stored_modes_);
-  const std::size_t n = data.node_count;
-  const std::size_t r = lazy.stored_modes_;
-  if (data.rest_positions.size() != 3 * n || data.mode_shapes.size() != 3 * n * r ||
-      lazy.active_modes_ > r) {
-    return core::make_error("lazy modal surface: model data sizes disagree");
-  }
-  auto index = arena.allocate_array<std::int32_t>(n, "lazy surface: surface index");
-  if (!index) return std::move(index).error();
-  std::fill(index->begin(), index->end(), -1);
-  for (std::size_t k = 0; k < data.surface_nodes.size(); ++k) {
-    if (data.surface_nodes[k] >= n) return core::make_error("lazy modal surface: surface node out of range");
-    (*index)[data.surface_nodes[k]] = static_cast<std::int32_t>(k);
-  }
-  lazy.surface_index_ = index.value();
-
-  auto column_norms = arena.allocate_array<double>(std::max<std::size_t>(r, 1), "lazy surface: mode maxima");
-  if (!column_norms) return std::move(column_norms).error();
-  std::fill(column_norms->begin(), column_norms->end(), 0.0);
-  lazy.mode_column_max_ = column_norms.value();
-  for (std::size_t node = 0; node < n; ++node) {
-    for (std::size_t i = 0; i < lazy.active_modes_; ++i) {
-      double column = 0.0;
-      for (std::size_t axis = 0; axis < 3; ++axis) {
-        const double value = data.mode_shapes[(3 * node + axis) * r + i];
-        column += value * value;
-      }
-      lazy.mode_column_max_[i] = std::max(lazy.mode_column_max_[i], std::sqrt(column));
-    }
-    double squared = 0.0;
-    for (std::size_t axis = 0; axis < 3; ++axis) {
-      const float* row = data.mode_shapes.data() + (3 * node + axis) * r;
-      for (std::size_t i = 0; i < lazy.active_modes_; ++i) {
-        const double value = row[i];
-        squared += value * value;
-        lazy.max_shape_entry_ = std::max(lazy.max_shape_entry_, std::abs(value));
-      }
-      lazy.max_rest_abs_ =
-          std::max(lazy.max_rest_abs_, std::abs(static_cast<double>(data.rest_positions[3 * node + axis])));
-    }
-    lazy.max_shape_norm_ = std::max(lazy.max_shape_norm_, std::sqrt(squared));
-  }
-
-  const std::size_t s = lazy.surface_count_;
-  auto column_max = arena.allocate_array<double>(std::max<std::size_t>(s, 1), "lazy surface: residual maxima");
-  if (!column_max) return std::move(column_max).error();
-  std::fill(column_max->begin(), column_max->end(), 0.0);
-  if (lazy.static_correction_) {
-    if (lazy.residual_.size() != 9 * s * s) {
-      return core::make_error("lazy modal surface: residual compliance is not 3s x 3s");
-    }
-    const std::size_t stride = 3 * s;
-    for (std::size_t k = 0; k < s; ++k) {
-      for (std::size_t l = 0; l < s; ++l) {
-        double squared = 0.0;
-        for (std::size_t a = 0; a < 3; ++a) {
-          for (std::size_t b = 0; b < 3; ++b) {
-            const double value = lazy.residual_[(3 * k + a) * stride + 3 * l + b];
-            squared += value * value;
-            lazy.max_residual_entry_ = std::max(lazy.max_residual_entry_, std::abs(value));
-          }
-        }
-        (*column_max)[l] = std::max((*column_max)[l], std::sqrt(squared));
-      }
-    }
-  }
-  lazy.residual_column_max_ = column_max.value();
-
-  const std::size_t modes = std::max<std::size_t>(lazy.active_modes_, 1);
-  auto modes_now = arena.allocate_array<float>(modes, "lazy surface: modes");
-  auto modes_ref = arena.allocate_array<float>(modes, "lazy surface: reference modes");
-  auto loads_now = arena.allocate_array<Load>(model::ModalModel::kMaxLoadedNodes, "lazy surface: loads");
-  auto loads_ref =
-      arena.allocate_array<Load>(model::ModalModel::kMaxLoadedNodes, "lazy surface: reference loads");
-  auto stamps = arena.allocate_array<std::uint64_t>(std::max<std::size_t>(n, 1), "lazy surface: stamps");
-  auto full_residual =
-      arena.allocate_array<float>(std::max<std::size_t>(3 * s, 1), "lazy surface: residual scratch");
-  if (!full_residual) return std::move(full_residual).error();
-  lazy.full_residual_ = full_residual.value();
-  if (!modes_now) return std::move(modes_now).error();
-  if (!modes_ref) return std::move(modes_ref).error();
-  if (!loads_now) return std::move(loads_now).error();
-  if (!loads_ref) return std::move(loads_ref).error();
-  if (!stamps) return std::move(stamps).error();
-  lazy.modes_ = modes_now.value();
-  lazy.reference_modes_ = modes_ref.value();
-  lazy.loads_ = loads_now.value();
-  lazy.reference_loads_ = loads_ref.value();
-  lazy.stamp_ = stamps.value();
-  std::fill(lazy.modes_.begin(), lazy.modes_.end(), 0.0F);
-  std::fill(lazy.reference_modes_.begin(), lazy.reference_modes_.end(), 0.0F);
-  std::fill(lazy.stamp_.begin(), lazy.stamp_.end(), std::uint64_t{0});
-  return lazy;
-}
-
-void LazyModalSurface::reconstruct_node(std::uint32_t node, float* out) const noexcept {
-  const std::size_t base = 3 * static_cast<std::size_t>(node);
-  float u[3];
-  lazy_surface_node_dot(mode_shapes_.data() + base * stored_modes_, stored_modes_, modes_.data(),
-                        active_modes_, u);
+void LazyModalSurface::finish_node(std::uint32_t node) noexcept {
+  float* out = surface_->deformed.data() + 3 * static_cast<std::size_t>(node);
   const std::int32_t surface = surface_index_[node];
   if (full_residual_valid_) {
     if (surface >= 0) {
-      for (std::size_t c = 0; c < 3; ++c) u[c] = u[c] + full_residual_[3 * static_cast<std::size_t>(surface) + c];
+      for (std::size_t c = 0; c < 3; ++c) out[c] = out[c] + full_residual_[3 * static_cast<std::size_t>(surface) + c];
     }
   } else if (static_correction_ && surface >= 0 && load_count_ > 0) {
-    // Σ_l R_{node,l} F_l summed as ModalModel::reconstruct does: loads in order, each load's
-    // axes in order, from zero (R symmetric: row block l read at this node's columns).
+    // Σ_l R_{node,l} F_l summed as ModalModel::reconstruct does (element by element as its
+    // axpy over the surface): loads in order, each load's axes in order, from zero (row block
+    // l read at this node's columns).
     const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+    if (static_cast<std::uint32_t>(surface) + 1 < surface_count_) {
+      // Four lanes (the fourth reads the next node's x, discarded): per lane the same
+      // multiply and add as the scalar sum below.
+      Eigen::Array4f sum = Eigen::Array4f::Zero();
+      for (std::size_t k = 0; k < load_count_; ++k) {
+        const Load& load = loads_[k];
+        if (load.surface_index < 0) continue;
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+          const float* row = residual_.data() +
+                             (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride +
+                             3 * static_cast<std::size_t>(surface);
+          sum = sum + load.force_n[axis] * Eigen::Map<const Eigen::Array4f>(row);
+        }
+      }
+      for (std::size_t c = 0; c < 3; ++c) out[c] = out[c] + sum[static_cast<Eigen::Index>(c)];
+      for (std::size_t c = 0; c < 3; ++c) out[c] = out[c] + rest_[3 * static_cast<std::size_t>(node) + c];
+      return;
+    }
     float residual[3] = {0.0F, 0.0F, 0.0F};
     for (std::size_t k = 0; k < load_count_; ++k) {
       const Load& load = loads_[k];
@@ -185,75 +62,235 @@ void LazyModalSurface::reconstruct_node(std::uint32_t node, float* out) const no
         for (std::size_t c = 0; c < 3; ++c) residual[c] = residual[c] + load.force_n[axis] * row[c];
       }
     }
-    for (std::size_t c = 0; c < 3; ++c) u[c] = u[c] + residual[c];
+    for (std::size_t c = 0; c < 3; ++c) out[c] = out[c] + residual[c];
   }
-  for (std::size_t c = 0; c < 3; ++c) out[c] = u[c] + rest_[base + c];
+  for (std::size_t c = 0; c < 3; ++c) out[c] = out[c] + rest_[3 * static_cast<std::size_t>(node) + c];
 }
 
-double LazyModalSurface::motion_bound() const noexcept {
-  // ‖Φ_i Δq‖ ≤ ‖Φ_i‖_F ‖Δq‖₂ and ≤ Σ_j ‖φ_ij‖ |Δq_j|: the smaller of the two maxima.
-  double squared = 0.0;
-  double per_mode = 0.0;
-  for (std::size_t i = 0; i < active_modes_; ++i) {
-    const double d = static_cast<double>(modes_[i]) - static_cast<double>(reference_modes_[i]);
-    squared += d * d;
-    per_mode += mode_column_max_[i] * std::abs(d);
+void LazyModalSurface::compute_nodes(const std::uint32_t* nodes, std::size_t count) noexcept {
+  std::size_t pending = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::uint32_t node = nodes[k];
+    if (node >= node_count_ || stamp_[node] == step_) continue;
+    stamp_[node] = step_;
+    pending_[pending++] = node;
   }
-  double bound = std::min(max_shape_norm_ * std::sqrt(squared), per_mode);
-  if (std::isnan(squared) || std::isnan(per_mode)) return std::numeric_limits<double>::quiet_NaN();
-  if (!static_correction_) return bound;
-  // Σ over the nodes loaded now or at the reference of max_k ‖R_kl‖ ‖ΔF_l‖.
+  if (pending == 0) return;
+  modal_->shape_rows(pending_.data(), pending, modes_.data(), surface_->deformed.data());
+  for (std::size_t k = 0; k < pending; ++k) finish_node(pending_[k]);
+  vertices_computed_ += pending;
+}
+
+void LazyModalSurface::reconstruct_node(std::uint32_t node, float* out) noexcept {
+  // The test's view of the kernel: this step's value of a node, made current.
+  compute_nodes(&node, 1);
+  for (std::size_t c = 0; c < 3; ++c) out[c] = surface_->deformed[3 * static_cast<std::size_t>(node) + c];
+}
+
+double LazyModalSurface::state_magnitude(std::span<const float> modes, std::span<const Load> loads) const noexcept {
+  // Each coordinate is a float sum of at most r + 3L + 4 terms whose magnitudes add up to at
+  // most this; its rounding error is within γ_m of it.
+  double modes_abs = 0.0;
+  for (const float q : modes) modes_abs += std::abs(static_cast<double>(q));
+  double forces_abs = 0.0;
+  for (const Load& load : loads) {
+    for (const float f : load.force_n) forces_abs += std::abs(static_cast<double>(f));
+  }
+  return max_rest_abs_ + max_shape_entry_ * modes_abs + max_residual_entry_ * forces_abs;
+}
+
+void LazyModalSurface::prepare_epoch(Epoch& epoch) noexcept {
+  epoch.delta_step = step_;
+  double squared = 0.0;
+  for (std::size_t j = 0; j < active_modes_; ++j) {
+    const double d = static_cast<double>(modes_[j]) - static_cast<double>(epoch.modes[j]);
+    epoch.abs_dq[j] = std::abs(d);
+    epoch.abs_dq_f[j] = float_up(std::abs(d));
+    squared += d * d;
+  }
+  epoch.dq_norm = std::sqrt(squared);
+  epoch.delta_count = 0;
+  if (!static_correction_) return;
   for (std::size_t k = 0; k < load_count_; ++k) {
     const Load& load = loads_[k];
     if (load.surface_index < 0) continue;
     float delta[3] = {load.force_n[0], load.force_n[1], load.force_n[2]};
-    for (std::size_t j = 0; j < reference_load_count_; ++j) {
-      if (reference_loads_[j].node != load.node) continue;
-      for (std::size_t c = 0; c < 3; ++c) delta[c] = load.force_n[c] - reference_loads_[j].force_n[c];
-      break;
+    // The loads keep their order from step to step mostly: the same slot first.
+    std::size_t match = k < epoch.load_count && epoch.loads[k].node == load.node ? k : epoch.load_count;
+    for (std::size_t j = 0; match == epoch.load_count && j < epoch.load_count; ++j) {
+      if (epoch.loads[j].node == load.node) match = j;
     }
-    bound += residual_column_max_[static_cast<std::size_t>(load.surface_index)] *
-             lazy_surface_norm3(delta) * (1.0 + 1e-6);  // the float difference's rounding
+    if (match < epoch.load_count) {
+      for (std::size_t c = 0; c < 3; ++c) delta[c] = load.force_n[c] - epoch.loads[match].force_n[c];
+    }
+    epoch.delta_index[epoch.delta_count] = load.surface_index;
+    epoch.delta_norm[epoch.delta_count] = lazy_surface_norm3(delta) * (1.0 + 1e-6);  // float difference
+    epoch.delta_norm_f[epoch.delta_count] = float_up(epoch.delta_norm[epoch.delta_count]);
+    ++epoch.delta_count;
   }
-  for (std::size_t j = 0; j < reference_load_count_; ++j) {
-    const Load& load = reference_loads_[j];
+  for (std::size_t j = 0; j < epoch.load_count; ++j) {
+    const Load& load = epoch.loads[j];
     if (load.surface_index < 0) continue;
-    bool present = false;
+    bool present = j < load_count_ && loads_[j].node == load.node;
     for (std::size_t k = 0; k < load_count_ && !present; ++k) present = loads_[k].node == load.node;
     if (present) continue;
-    bound += residual_column_max_[static_cast<std::size_t>(load.surface_index)] *
-             lazy_surface_norm3(load.force_n);
+    epoch.delta_index[epoch.delta_count] = load.surface_index;
+    epoch.delta_norm[epoch.delta_count] = lazy_surface_norm3(load.force_n);
+    epoch.delta_norm_f[epoch.delta_count] = float_up(epoch.delta_norm[epoch.delta_count]);
+    ++epoch.delta_count;
   }
-  return bound;
 }
 
-double LazyModalSurface::rounding_margin() const noexcept {
-  // Each coordinate is a float sum of at most r + 3L + 2 terms whose magnitudes are bounded by
-  // the sums below; its rounding error is within γ_m (m terms) of that magnitude, once for the
-  // positions of the reference and once for these.
-  double magnitude = max_rest_abs_;
-  double modes_abs = 0.0;
-  for (std::size_t i = 0; i < active_modes_; ++i) {
-    modes_abs += std::max(std::abs(static_cast<double>(modes_[i])),
-                          std::abs(static_cast<double>(reference_modes_[i])));
+void LazyModalSurface::epoch_cluster_pass(std::uint32_t index) noexcept {
+  Epoch& epoch = epochs_[index];
+  if (epoch.delta_step != step_) prepare_epoch(epoch);
+  // Σ_j max|Φ_row,j| |Δq_j| and Σ_l max‖R_row,l‖ ‖ΔF_l‖ for eight clusters at a time (the
+  // sums in registers), in float: each within (1 + (r + L + 1) u) of the exact sum of its
+  // non-negative terms (every factor rounded up), hence the factor below.
+  const double rounding = rounding_m(epoch);
+  const double float_sum = 1.0 + static_cast<double>(active_modes_ + epoch.delta_count + 2) * 0x1p-23;
+  const bool finite = std::isfinite(epoch.dq_norm);
+  const std::size_t clusters = cluster_count();
+  for (std::size_t base = 0; base < cluster_stride_; base += 8) {
+    using Lanes = Eigen::Array4f;
+    Lanes modes_low = Lanes::Zero();
+    Lanes modes_high = Lanes::Zero();
+    for (std::size_t j = 0; j < active_modes_; ++j) {
+      const float d = epoch.abs_dq_f[j];
+      const float* row = shape_max_t_.data() + j * cluster_stride_ + base;
+      modes_low += Eigen::Map<const Lanes>(row) * d;
+      modes_high += Eigen::Map<const Lanes>(row + 4) * d;
+    }
+    Lanes loads_low = Lanes::Zero();
+    Lanes loads_high = Lanes::Zero();
+    for (std::size_t i = 0; i < epoch.delta_count; ++i) {
+      const float norm = epoch.delta_norm_f[i];
+      const float* row = residual_max_t_.data() + static_cast<std::size_t>(epoch.delta_index[i]) * cluster_stride_ + base;
+      loads_low += Eigen::Map<const Lanes>(row) * norm;
+      loads_high += Eigen::Map<const Lanes>(row + 4) * norm;
+    }
+    float modes_sum[8];
+    float loads_sum[8];
+    Eigen::Map<Lanes>{modes_sum} = modes_low;
+    Eigen::Map<Lanes>{modes_sum + 4} = modes_high;
+    Eigen::Map<Lanes>{loads_sum} = loads_low;
+    Eigen::Map<Lanes>{loads_sum + 4} = loads_high;
+    for (std::size_t k = 0; k < 8 && base + k < clusters; ++k) {
+      const std::size_t c = base + k;
+      if (cluster_epoch_[c] != index) continue;
+      const double modes = std::min(row_norm_max_[c] * epoch.dq_norm, static_cast<double>(modes_sum[k]) * float_sum);
+      bound_[c] = finite ? used_m_[c] + modes + static_cast<double>(loads_sum[k]) * float_sum + rounding
+                         : std::numeric_limits<double>::quiet_NaN();
+    }
   }
-  magnitude += max_shape_entry_ * modes_abs;
-  double forces_abs = 0.0;
-  for (std::size_t k = 0; k < load_count_; ++k) {
-    for (const float f : loads_[k].force_n) forces_abs += std::abs(static_cast<double>(f));
-  }
-  for (std::size_t k = 0; k < reference_load_count_; ++k) {
-    for (const float f : reference_loads_[k].force_n) forces_abs += std::abs(static_cast<double>(f));
-  }
-  magnitude += max_residual_entry_ * forces_abs;
+}
+
+double LazyModalSurface::rounding_m(const Epoch& epoch) const noexcept {
   const double terms = static_cast<double>(active_modes_) +
-                       3.0 * static_cast<double>(std::max(load_count_, reference_load_count_)) + 4.0;
+                       3.0 * static_cast<double>(std::max(load_count_, epoch.load_count)) + 4.0;
   constexpr double kUnitRoundoff = 0x1p-24;
-  return 2.0 * 2.0 * terms * kUnitRoundoff * magnitude;  // γ_m ≤ 2 m u here, twice
+  return 2.0 * terms * kUnitRoundoff * (magnitude_ + epoch.magnitude);  // γ_m ≤ 2mu, twice
+}
+
+double LazyModalSurface::epoch_bound(const Epoch& epoch) const noexcept {
+  // The pass's bound with the maxima over every cluster: a bound for each of its clusters.
+  if (!std::isfinite(epoch.dq_norm)) return std::numeric_limits<double>::quiet_NaN();
+  double per_mode = 0.0;
+  for (std::size_t j = 0; j < active_modes_; ++j) per_mode += all_shape_max_[j] * epoch.abs_dq[j];
+  double bound = std::min(all_row_norm_max_ * epoch.dq_norm, per_mode);
+  for (std::size_t k = 0; k < epoch.delta_count; ++k) {
+    bound += all_residual_max_[static_cast<std::size_t>(epoch.delta_index[k])] * epoch.delta_norm[k];
+  }
+  return epoch.max_used_m + bound + rounding_m(epoch);
+}
+
+std::uint32_t LazyModalSurface::take_snapshot_epoch() noexcept {
+  // Epoch 0 is the last full refresh's (most clusters, far from any load, stay there); the
+  // others are a ring of the states where clusters were checked.
+  const auto ring = static_cast<std::uint32_t>(epochs_.size() - 1);
+  const std::uint32_t slot = latest_epoch_ % ring + 1;
+  Epoch& epoch = epochs_[slot];
+  if (epoch.users > 0) {
+    // Its clusters move to this state: their bound of this step bounds their distance now.
+    for (std::size_t c = 0; c < cluster_count(); ++c) {
+      if (cluster_epoch_[c] == slot) used_m_[c] = bound_[c];
+    }
+  }
+  std::copy(modes_.begin(), modes_.end(), epoch.modes.begin());
+  std::copy(loads_.begin(), loads_.begin() + static_cast<std::ptrdiff_t>(load_count_), epoch.loads.begin());
+  epoch.load_count = load_count_;
+  epoch.magnitude = magnitude_;
+  epoch.delta_step = 0;
+  latest_epoch_ = slot;
+  return slot;
+}
+
+void LazyModalSurface::anchor(std::size_t cluster, std::uint32_t epoch, double deviation) noexcept {
+  --epochs_[cluster_epoch_[cluster]].users;
+  cluster_epoch_[cluster] = epoch;
+  ++epochs_[epoch].users;
+  used_m_[cluster] = deviation;
+}
+
+void LazyModalSurface::update_max_used() noexcept {
+  for (Epoch& epoch : epochs_) epoch.max_used_m = 0.0;
+  for (std::size_t c = 0; c < cluster_count(); ++c) {
+    Epoch& epoch = epochs_[cluster_epoch_[c]];
+    epoch.max_used_m = std::max(epoch.max_used_m, used_m_[c]);
+  }
+}
+
+float LazyModalSurface::cluster_deviation(std::size_t cluster) const noexcept {
+  // As TriangleBvh::refit compares: the largest |now − reference| over the coordinates, in float.
+  const std::span<const float> reference = surface_->grid->reference_positions();
+  float deviation = 0.0F;
+  for (std::uint32_t k = cluster_start_[cluster]; k < cluster_start_[cluster + 1]; ++k) {
+    const std::size_t base = 3 * static_cast<std::size_t>(cluster_nodes_[k]);
+    for (std::size_t c = 0; c < 3; ++c) {
+      const float d = std::abs(surface_->deformed[base + c] - reference[base + c]);
+      if (!std::isfinite(d)) return std::numeric_limits<float>::quiet_NaN();
+      deviation = std::max(deviation, d);
+    }
+  }
+  return deviation;
+}
+
+void LazyModalSurface::compute_remaining() noexcept {
+  // Every vertex not computed yet this step (a check may have computed some).
+  std::size_t pending = 0;
+  for (std::uint32_t node = 0; node < node_count_; ++node) {
+    if (stamp_[node] == step_) continue;
+    stamp_[node] = step_;
+    pending_[pending++] = node;
+  }
+  // With most of the surface to do, Σ_l R_{k,l} F_l for every surface node at once
+  // (element by element in the same order as finish_node's per-node sum, so the values are
+  // the same).
+  if (static_correction_ && load_count_ > 0 && 2 * pending > node_count_) {
+    const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+    std::fill(full_residual_.begin(), full_residual_.end(), 0.0F);
+    for (std::size_t k = 0; k < load_count_; ++k) {
+      const Load& load = loads_[k];
+      if (load.surface_index < 0) continue;
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        const float* row =
+            residual_.data() + (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride;
+        // Element by element as finish_node's sum (and ModalModel::reconstruct's axpy).
+        Eigen::Map<Eigen::VectorXf>(full_residual_.data(), static_cast<Eigen::Index>(stride)) +=
+            load.force_n[axis] * Eigen::Map<const Eigen::VectorXf>(row, static_cast<Eigen::Index>(stride));
+      }
+    }
+    full_residual_valid_ = true;
+  }
+  modal_->shape_rows(pending == node_count_ ? nullptr : pending_.data(), pending, modes_.data(),
+                     surface_->deformed.data());
+  for (std::size_t k = 0; k < pending; ++k) finish_node(pending_[k]);
+  full_residual_valid_ = false;
 }
 
 bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& modal) noexcept {
   surface_ = &surface;
+  modal_ = &modal;
   surface.lazy = this;
   ++step_;
   // The snapshot: q in float (as ModalModel::reconstruct rounds it) and the loads of the step.
@@ -270,48 +307,72 @@ bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& m
       for (int c = 0; c < 3; ++c) load.force_n[c] = force[c];
     }
   }
-  if (lazy_allowed_ && reference_valid_) {
-    const double bound = motion_bound();
-    const double rounding = rounding_margin();
-    const double budget = 0.999 * static_cast<double>(surface.grid_slack_m) - used_slack_m_ - rounding;
-    last_bound_m_ = bound;
-    last_budget_m_ = budget;
-    if (bound <= budget) {  // false for a non-finite bound: the full path refuses it
-      // Every vertex is within this of the hierarchy's reference (rounded up to float).
-      within_m_ = std::nextafter(static_cast<float>(used_slack_m_ + bound + rounding), INFINITY);
+  const std::size_t clusters = cluster_count();
+  if (lazy_allowed_ && reference_valid_ && surface.grid && surface.grid->ready()) {
+    magnitude_ = state_magnitude(modes_, loads_.first(load_count_));
+    budget_m_ = 0.999 * static_cast<double>(surface.grid_slack_m);
+    // Each reference state's bound over all its clusters first (cheap); per cluster only
+    // for the states where that is beyond the budget.
+    bool all_within = true;
+    for (Epoch& epoch : epochs_) {
+      if (epoch.users == 0) continue;
+      prepare_epoch(epoch);
+      epoch.bound_m = epoch_bound(epoch);
+      all_within = all_within && epoch.bound_m <= budget_m_;
+    }
+    std::size_t checked = 0;
+    for (std::uint32_t e = 0; e < epochs_.size(); ++e) {
+      // A state whose common bound is beyond the budget: its clusters one by one (in one pass).
+      if (!(epochs_[e].bound_m <= budget_m_) && epochs_[e].users > 0) epoch_cluster_pass(e);
+    }
+    for (std::size_t c = 0; c < clusters; ++c) {
+      const Epoch& epoch = epochs_[cluster_epoch_[c]];
+      if (epoch.bound_m <= budget_m_) bound_[c] = epoch.bound_m;
+      if (!(bound_[c] <= budget_m_)) {  // NaN too
+        checked_[checked++] = static_cast<std::uint32_t>(c);
+      }
+    }
+    // The clusters beyond the budget: their vertices exactly, compared as the refit compares
+    // (the full path below does not compute them again).
+    std::size_t checked_nodes = 0;
+    for (std::size_t k = 0; k < checked; ++k) checked_nodes += cluster_start_[checked_[k] + 1] - cluster_start_[checked_[k]];
+    // Most of the surface to check: all of it the full path's way (contiguous rows, the
+    // static correction over the whole surface at once), then the same checks.
+    if (3 * checked_nodes > node_count_) compute_remaining();
+    bool beyond = false;
+    for (std::size_t k = 0; k < checked && !beyond; ++k) {
+      const std::size_t c = checked_[k];
+      compute_nodes(cluster_nodes_.data() + cluster_start_[c], cluster_start_[c + 1] - cluster_start_[c]);
+      checked_deviation_[k] = cluster_deviation(c);
+      beyond = !(checked_deviation_[k] <= surface.grid_slack_m);
+    }
+    if (!beyond) {
+      if (checked > 0) {
+        const std::uint32_t epoch = take_snapshot_epoch();
+        for (std::size_t k = 0; k < checked; ++k) anchor(checked_[k], epoch, checked_deviation_[k]);
+        update_max_used();
+        ++checked_steps_;
+      }
+      // Every vertex is within this of the hierarchy's reference positions (per coordinate):
+      // each cluster's bound, or a checked cluster's exact deviation; rounded up to float.
+      // TriangleBvh::query_within / query_segment_within take the boxes as grown by it.
+      double within = 0.0;
+      for (std::size_t c = 0; c < clusters; ++c) {
+        if (bound_[c] <= budget_m_) within = std::max(within, bound_[c]);
+      }
+      for (std::size_t k = 0; k < checked; ++k) within = std::max(within, static_cast<double>(checked_deviation_[k]));
+      within_m_ = std::nextafter(static_cast<float>(within), std::numeric_limits<float>::infinity());
       ++lazy_steps_;
       surface.surface_ready = true;
       return true;
     }
   }
-  // The full path: every vertex, then the refit (which may still find nothing beyond slack).
+  // The full path: every vertex, then the refit (which does the work only beyond the slack).
   ++full_steps_;
-  within_m_ = -1.0F;
+  within_m_ = -1.0F;  // unknown until the refit: the slack
   surface.surface_ready = false;
   if (lazy_allowed_) {
-    // Σ_l R_{k,l} F_l for every surface node at once (element by element in the same order as
-    // reconstruct_node's per-node sum, so the values are the same), then every node.
-    if (static_correction_ && load_count_ > 0) {
-      const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
-      std::fill(full_residual_.begin(), full_residual_.end(), 0.0F);
-      for (std::size_t k = 0; k < load_count_; ++k) {
-        const Load& load = loads_[k];
-        if (load.surface_index < 0) continue;
-        for (std::size_t axis = 0; axis < 3; ++axis) {
-          const float* row =
-              residual_.data() + (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride;
-          // Element by element as reconstruct_node's sum (and ModalModel::reconstruct's axpy).
-          Eigen::Map<Eigen::VectorXf>(full_residual_.data(), static_cast<Eigen::Index>(stride)) +=
-              load.force_n[axis] * Eigen::Map<const Eigen::VectorXf>(row, static_cast<Eigen::Index>(stride));
-        }
-      }
-      full_residual_valid_ = true;
-    }
-    for (std::uint32_t node = 0; node < node_count_; ++node) {
-      reconstruct_node(node, surface.deformed.data() + 3 * static_cast<std::size_t>(node));
-      stamp_[node] = step_;
-    }
-    full_residual_valid_ = false;
+    compute_remaining();
   } else {
     full_failed_ = !modal.reconstruct(surface.deformed).is_ok();
     if (full_failed_) return false;
@@ -326,35 +387,56 @@ bool LazyModalSurface::finish_full(ContactSurface& surface) noexcept {
   reference_valid_ = false;
   if (full_failed_ || !surface.grid) return false;
   // The refit as the full path always did it: the work only when a coordinate moved beyond
-  // the slack. Either way these positions become the bound's reference, with the slack the
-  // hierarchy has left for them (slack − their distance from its own reference).
+  // the slack. Either way this state becomes every cluster's reference, with its distance
+  // from the hierarchy's reference (0 after a refit that did the work).
   if (!surface.refit_grid()) return false;  // refused (non-finite): the hierarchy is empty
-  used_slack_m_ = static_cast<double>(surface.grid->last_deviation_m());
   within_m_ = surface.grid->last_deviation_m();  // these positions are the ones the refit saw
-  std::copy(modes_.begin(), modes_.end(), reference_modes_.begin());
-  std::copy(loads_.begin(), loads_.begin() + static_cast<std::ptrdiff_t>(load_count_),
-            reference_loads_.begin());
-  reference_load_count_ = load_count_;
-  reference_valid_ = lazy_allowed_;
+  if (!lazy_allowed_) return true;
+  for (Epoch& epoch : epochs_) epoch.users = 0;
+  magnitude_ = state_magnitude(modes_, loads_.first(load_count_));
+  latest_epoch_ = 0;
+  Epoch& epoch = epochs_[0];
+  std::copy(modes_.begin(), modes_.end(), epoch.modes.begin());
+  std::copy(loads_.begin(), loads_.begin() + static_cast<std::ptrdiff_t>(load_count_), epoch.loads.begin());
+  epoch.load_count = load_count_;
+  epoch.magnitude = magnitude_;
+  epoch.delta_step = 0;
+  epoch.users = static_cast<std::uint32_t>(cluster_count());
+  const bool refitted = surface.grid->last_deviation_m() == 0.0F;
+  for (std::size_t c = 0; c < cluster_count(); ++c) {
+    cluster_epoch_[c] = 0;
+    used_m_[c] = refitted ? 0.0 : static_cast<double>(cluster_deviation(c));
+  }
+  update_max_used();
+  reference_valid_ = true;
   return true;
-}
-
-void LazyModalSurface::ensure_vertex(std::uint32_t node) noexcept {
-  if (node >= node_count_ || stamp_[node] == step_) return;
-  reconstruct_node(node, surface_->deformed.data() + 3 * static_cast<std::size_t>(node));
-  stamp_[node] = step_;
-  ++vertices_computed_;
 }
 
 void LazyModalSurface::ensure_triangle(std::uint32_t triangle) noexcept {
   if (surface_ == nullptr) return;
   const std::size_t base = 3 * static_cast<std::size_t>(triangle);
   if (base + 2 >= surface_->triangles.size()) return;
-  for (std::size_t c = 0; c < 3; ++c) ensure_vertex(surface_->triangles[base + c]);
+  compute_nodes(surface_->triangles.data() + base, 3);
 }
 
 void LazyModalSurface::ensure_candidates(std::span<const std::uint32_t> ids) noexcept {
-  for (const std::uint32_t id : ids) ensure_triangle(id);
+  if (surface_ == nullptr) return;
+  // Every vertex of the candidates not yet current, then one kernel call over them.
+  std::size_t pending = 0;
+  for (const std::uint32_t id : ids) {
+    const std::size_t base = 3 * static_cast<std::size_t>(id);
+    if (base + 2 >= surface_->triangles.size()) continue;
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::uint32_t node = surface_->triangles[base + c];
+      if (node >= node_count_ || stamp_[node] == step_) continue;
+      stamp_[node] = step_;
+      pending_[pending++] = node;
+    }
+  }
+  if (pending == 0) return;
+  modal_->shape_rows(pending_.data(), pending, modes_.data(), surface_->deformed.data());
+  for (std::size_t k = 0; k < pending; ++k) finish_node(pending_[k]);
+  vertices_computed_ += pending;
 }
 
 core::Status LazyModalSurface::query(const model::Aabb& box, std::span<std::uint32_t> out_ids,
@@ -373,7 +455,8 @@ core::Status LazyModalSurface::query_segment(const model::Vec3& p0, const model:
   if (surface_ == nullptr || !surface_->grid) return core::Status::ok();
   // Boxes taken as grown by this step's bound on the motion instead of the slack (same
   // answer for every triangle within margin_m, fewer candidates and vertices to compute).
-  const core::Status status = surface_->grid->query_segment_within(p0, p1, margin_m, within_m_, out_ids, out_count);
+  const core::Status status =
+      surface_->grid->query_segment_within(p0, p1, margin_m, within_m_, out_ids, out_count);
   ensure_candidates(out_ids.first(std::min(out_count, out_ids.size())));
   return status;
 }

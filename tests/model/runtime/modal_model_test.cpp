@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -222,6 +223,41 @@ TEST(ModalModel, ReconstructEqualsPerNodeDisplacement) {
     }
     std::vector<float> too_short(3 * synthetic.node_count - 1);
     EXPECT_EQ(model.reconstruct(too_short).code(), core::StatusCode::invalid_argument);
+  }
+}
+
+// reconstruct()'s Φ q is ModalModel::shape_rows (the kernel the lazy contact surface shares,
+// issue 19): any subset of nodes, in any order, gets reconstruct()'s bits; and on a build whose
+// packets are SSE's four floats it sums each row as Eigen 3.4's row-major GEMV did before
+// (packets from zero, predux, the tail in order), so the field, the golden traces and the state
+// hashes did not move. 13 and 40 modes: packets with and without a tail.
+TEST(ModalModel, ShapeRowsIsReconstructsKernelAndKeepsTheGemvSums) {
+  for (const std::uint32_t modes : {13U, 40U}) {
+    SCOPED_TRACE(::testing::Message() << modes << " modes");
+    const SyntheticModel synthetic = random_model(21, modes, false, 9);
+    core::Arena arena = make_arena();
+    ModalModel model = make_model(synthetic, arena, {1e-3F, 0, false});
+    ASSERT_TRUE(model.add_node_force(3, Vec3(0.1F, -0.2F, 0.3F)).is_ok());
+    for (int step = 0; step < 7; ++step) ASSERT_TRUE(model.step().is_ok());
+    std::vector<float> field(3 * synthetic.node_count);
+    ASSERT_TRUE(model.reconstruct(field).is_ok());
+    std::vector<float> q(modes);
+    for (std::size_t i = 0; i < modes; ++i) q[i] = static_cast<float>(model.modal_displacement()[i]);
+    // A subset in a scrambled order, an odd count (pairs and a single).
+    const std::vector<std::uint32_t> nodes = {17, 2, 9, 20, 0, 11, 5};
+    std::vector<float> some(field.size(), -1.0F);
+    model.shape_rows(nodes.data(), nodes.size(), q.data(), some.data());
+    for (const std::uint32_t node : nodes) {
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        EXPECT_EQ(0, std::memcmp(&some[3 * node + axis], &field[3 * node + axis], sizeof(float))) << "node " << node;
+      }
+    }
+    if (Eigen::internal::packet_traits<float>::size != 4) continue;  // the GEMV's sums differ on wider packets
+    using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const Eigen::Map<const RowMajor> shapes(synthetic.data().mode_shapes.data(),
+                                            static_cast<Eigen::Index>(field.size()), static_cast<Eigen::Index>(modes));
+    const Eigen::VectorXf gemv = shapes * Eigen::Map<const Eigen::VectorXf>(q.data(), static_cast<Eigen::Index>(modes));
+    EXPECT_EQ(0, std::memcmp(gemv.data(), field.data(), field.size() * sizeof(float)));
   }
 }
 

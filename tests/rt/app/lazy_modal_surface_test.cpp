@@ -5,9 +5,11 @@
 //  - every vertex a query makes current equals the full reconstruction bit for bit, both the
 //    lazy kernel's full path and ModalModel::reconstruct (+ rest), the field the cycle used
 //    before;
-//  - the motion bound is conservative: every vertex's actual motion since the bound's
-//    reference is within it, and the hierarchy stays within its slack;
-//  - lazy and full steps both happen; no heap after setup.
+//  - the per-cluster bound is conservative (every vertex of a cluster is within its cluster's
+//    bound of the hierarchy's reference), and the lazy path is taken exactly when the full
+//    path's refit would skip the work: a lazy step's full reconstruction is within the slack
+//    of the hierarchy's reference, a full step's is beyond it (the refit did the work);
+//  - lazy (also with clusters checked) and full steps all happen; no heap after setup.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -95,7 +97,7 @@ struct Rig {
   ContactSurface surface;
   std::optional<LazyModalSurface> lazy;
   std::vector<float> full, reference;
-  std::uint64_t lazy_steps = 0, full_steps = 0;
+  std::uint64_t lazy_steps = 0, full_steps = 0, needless_full_steps = 0;
 
   Rig() {
     model::ModalSettings settings;
@@ -109,20 +111,36 @@ struct Rig {
     reference.resize(shell.rest.size());
   }
 
-  // One cycle: the loads, a step, the surface as the modal stage refreshes it.
+  // One cycle: the loads, a step, the surface as the modal stage refreshes it. Checks that the
+  // lazy path is taken exactly when the full path's refit would skip the work.
   void step(const std::vector<std::pair<std::uint32_t, Eigen::Vector3f>>& loads) {
     modal->clear_forces();
     for (const auto& [node, force] : loads) ASSERT_TRUE(modal->add_node_force(node, force).is_ok());
     ASSERT_TRUE(modal->step().is_ok());
-    if (lazy->begin(surface, *modal)) {
-      ++lazy_steps;
-    } else {
-      ASSERT_TRUE(lazy->finish_full(surface));
-      std::copy(surface.deformed.begin(), surface.deformed.end(), reference.begin());
-      ++full_steps;
-    }
     ASSERT_TRUE(modal->reconstruct(full).is_ok());
     for (std::size_t i = 0; i < full.size(); ++i) full[i] += shell.rest[i];
+    // The hierarchy's reference before this step (what refit() compares against).
+    const std::span<const float> held = surface.grid->reference_positions();
+    std::copy(held.begin(), held.end(), reference.begin());
+    float deviation = 0.0F;
+    for (std::size_t i = 0; i < full.size(); ++i) deviation = std::max(deviation, std::abs(full[i] - reference[i]));
+    const std::uint64_t refits = surface.grid->refit_count();
+    if (lazy->begin(surface, *modal)) {
+      ++lazy_steps;
+      ASSERT_LE(deviation, surface.grid_slack_m) << "lazy although the full path would refit";
+      ASSERT_EQ(refits, surface.grid->refit_count());
+    } else {
+      ASSERT_TRUE(lazy->finish_full(surface));
+      // The full path: all vertices equal the model's reconstruction.
+      ASSERT_EQ(0, std::memcmp(surface.deformed.data(), full.data(), full.size() * sizeof(float)));
+      // Every full step after the first is one the refit needs.
+      if (full_steps > 0 && deviation <= surface.grid_slack_m) ++needless_full_steps;
+      EXPECT_EQ(needless_full_steps, 0U) << "a full step the refit did not need";
+      if (deviation > surface.grid_slack_m) {
+        EXPECT_EQ(refits + 1, surface.grid->refit_count());
+      }
+      ++full_steps;
+    }
   }
 
   // Queries over boxes around random points: every vertex of every returned triangle is the
@@ -157,13 +175,15 @@ TEST(LazyModalSurface, QueriedVerticesEqualTheFullReconstructionOverAPressAndRel
     std::vector<std::pair<std::uint32_t, Eigen::Vector3f>> loads;
     const float ramp = cycle < 200 ? static_cast<float>(cycle) / 200.0F : (cycle < 400 ? 1.0F : 0.0F);
     if (ramp > 0.0F) {
-      loads.emplace_back(14U, Eigen::Vector3f(0.0F, 0.0F, -1.5F * ramp));
-      loads.emplace_back(21U, Eigen::Vector3f(0.3F, 0.0F, -1.0F * ramp));
+      // Large enough to move the surface beyond the hierarchy's slack (refits happen).
+      loads.emplace_back(14U, Eigen::Vector3f(0.0F, 0.0F, -30.0F * ramp));
+      loads.emplace_back(21U, Eigen::Vector3f(6.0F, 0.0F, -20.0F * ramp));
     }
-    if (cycle % 50 < 5) loads.emplace_back(8U, Eigen::Vector3f(0.0F, 0.0F, -0.6F));
+    if (cycle % 50 < 5) loads.emplace_back(8U, Eigen::Vector3f(0.0F, 0.0F, -12.0F));
     rig.step(loads);
     checked += rig.query_and_compare(rng);
-    // The lazy kernel's every vertex (its full path's values) against the model's GEMV too.
+    // The lazy path's every vertex (its per-node static correction) against the model's
+    // reconstruction too.
     for (std::uint32_t node = 0; node < rig.shell.side * rig.shell.side; ++node) {
       float out[3];
       rig.lazy->reconstruct_node(node, out);
@@ -175,38 +195,51 @@ TEST(LazyModalSurface, QueriedVerticesEqualTheFullReconstructionOverAPressAndRel
   EXPECT_GT(rig.full_steps, 1U);
 }
 
-TEST(LazyModalSurface, MotionBoundIsConservativeUnderRandomLoads) {
+TEST(LazyModalSurface, ClusterBoundsAreConservativeUnderRandomLoads) {
   Rig rig;
   std::mt19937 rng(5);
-  std::uniform_real_distribution<float> force(-1.5F, 1.5F);
+  std::uniform_real_distribution<float> force(-30.0F, 30.0F);
   std::uniform_int_distribution<std::uint32_t> node(0, rig.shell.side * rig.shell.side - 1);
   std::vector<std::pair<std::uint32_t, Eigen::Vector3f>> loads;
   double tightest = 0.0;
+  std::size_t bounds_checked = 0;
   for (int cycle = 0; cycle < 2000; ++cycle) {
     if (cycle % 7 == 0) {  // new loads now and then; held in between
       loads.clear();
       const int count = static_cast<int>(node(rng) % 4);
       for (int k = 0; k < count; ++k) loads.emplace_back(node(rng), Eigen::Vector3f(force(rng), force(rng), force(rng)));
     }
+    const std::uint64_t full_before = rig.full_steps;
     rig.step(loads);
-    if (rig.lazy_steps == 0 || rig.lazy->last_bound_m() <= 0.0) continue;
-    // Against the positions of the bound's reference (the last full step).
-    double moved = 0.0;
-    for (std::size_t v = 0; v < rig.full.size() / 3; ++v) {
-      const Eigen::Vector3d d(static_cast<double>(rig.full[3 * v]) - static_cast<double>(rig.reference[3 * v]),
-                              static_cast<double>(rig.full[3 * v + 1]) - static_cast<double>(rig.reference[3 * v + 1]),
-                              static_cast<double>(rig.full[3 * v + 2]) - static_cast<double>(rig.reference[3 * v + 2]));
-      moved = std::max(moved, d.norm());
+    if (full_before == 0) continue;
+    // Every cluster's bound of this step against its vertices' distance from the hierarchy's
+    // reference before the step (rig.reference).
+    for (std::size_t c = 0; c < rig.lazy->cluster_count(); ++c) {
+      const double bound = rig.lazy->last_cluster_bound_m(c);
+      ASSERT_TRUE(std::isfinite(bound));
+      double moved = 0.0;
+      for (std::uint32_t k = rig.lazy->cluster_start(c); k < rig.lazy->cluster_start(c + 1); ++k) {
+        const std::size_t v = rig.lazy->cluster_nodes()[k];
+        for (std::size_t a = 0; a < 3; ++a) {
+          moved = std::max(moved, std::abs(static_cast<double>(rig.full[3 * v + a]) -
+                                           static_cast<double>(rig.reference[3 * v + a])));
+        }
+      }
+      ASSERT_LE(moved, bound) << "cycle " << cycle << " cluster " << c;
+      if (bound > 0.0) tightest = std::max(tightest, moved / bound);
+      ++bounds_checked;
     }
-    ASSERT_LE(moved, rig.lazy->last_bound_m() + 1e-9) << "cycle " << cycle;
-    tightest = std::max(tightest, moved / rig.lazy->last_bound_m());
   }
+  EXPECT_GT(bounds_checked, 1000U);
   EXPECT_GT(rig.lazy_steps, 100U);
+  EXPECT_GT(rig.lazy->checked_steps(), 10U);
   EXPECT_GT(rig.full_steps, 10U);
   RecordProperty("bound_tightness", std::to_string(tightest));
-  std::printf("lazy %llu full %llu, largest motion / bound %.3f\n",
+  std::printf("lazy %llu (checked %llu) full %llu (refit not needed %llu), largest motion / bound %.3f\n",
               static_cast<unsigned long long>(rig.lazy_steps),
-              static_cast<unsigned long long>(rig.full_steps), tightest);
+              static_cast<unsigned long long>(rig.lazy->checked_steps()),
+              static_cast<unsigned long long>(rig.full_steps),
+              static_cast<unsigned long long>(rig.needless_full_steps), tightest);
 }
 
 TEST(LazyModalSurface, NoHeapAfterSetup) {

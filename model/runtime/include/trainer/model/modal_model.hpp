@@ -138,6 +138,15 @@ class BasicModalModel {
   // fewer modes than stored and a load, it falls back to displacement() per node (exact, slow).
   core::Status reconstruct(std::span<Scalar> out_3n) const noexcept;
 
+  // Φ_node q for `count` nodes (nodes[k], or node k when `nodes` is null) into
+  // out_3n[3·node + axis], with `modes` the active modal coordinates in Scalar (reconstruct()
+  // uses x rounded to Scalar). The kernel reconstruct() itself runs (one compiled function):
+  // a caller computing some nodes gets reconstruct()'s bits for them (before its static
+  // correction), on any vector level. No checks (RT hot path): nodes < node_count(), modes
+  // active_mode_count() long.
+  void shape_rows(const std::uint32_t* nodes, std::size_t count, const Scalar* modes,
+                  Scalar* out_3n) const noexcept;
+
   void reset() noexcept;  // back to rest, forces cleared
 
   std::uint32_t node_count() const noexcept { return node_count_; }

@@ -100,6 +100,9 @@ class TriangleBvh final : public TriangleBroadPhase {
   // given and the hierarchy's reference (0 when it refitted). LazyModalSurface bounds the
   // motion from there on and keeps slack − this for it.
   float last_deviation_m() const noexcept { return last_deviation_m_; }
+  // The positions of the last refit that did the work (what refit() compares against).
+  // LazyModalSurface checks a part of the mesh against them (its per-cluster bound).
+  std::span<const float> reference_positions() const noexcept { return reference_; }
 
  private:
   struct Node {

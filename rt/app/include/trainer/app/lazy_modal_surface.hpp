@@ -1,20 +1,26 @@
 // A modal model's contact surface reconstructed lazily at haptic rate (issue 19;
 // docs/collision.md "Lazy reconstruction"): only the vertices the collision queries touch are
 // computed, each once per model step, and the broad phase (the surface's TriangleBvh) is left
-// unrefitted while a bound on every vertex's motion since its last refit, computed from the
-// modal state alone, stays within the refit slack.
+// unrefitted while TriangleBvh::refit would itself skip the work; the hierarchy, and so every
+// query's candidate list, is always the one the full path (every vertex, then refit) has.
 //
-// Why it is exact: the hierarchy's boxes are the triangles' AABBs at the positions of its last
-// refit grown by the slack s (TriangleBvh::refit). Vertex i's displacement is
-//   u_i = Φ_i q + Σ_l R_il F_l   (R_il = 0 off the surface),
-// so since that refit it moved at most
-//   min(max_i ‖Φ_i‖_F ‖Δq‖₂, Σ_j max_i ‖φ_ij‖ |Δq_j|) + Σ_l max_k ‖R_kl‖_F ‖ΔF_l‖₂
-// (+ both reconstructions' float rounding, bounded) from the state of the last full refresh,
-// and while that stays below s minus that refresh's distance from the hierarchy's reference
-// (TriangleBvh::last_deviation_m), TriangleBvh::refit would itself skip the work: the
-// hierarchy and every query's candidate list are the ones of the full path. Each candidate triangle's
-// vertices are computed by the same kernel (reconstruct_node) the full path runs for every
-// node, so the positions the narrow phases read are bit-identical to a full reconstruction.
+// Why it is exact: the full path refits the hierarchy iff some vertex coordinate is farther
+// than the slack s from the hierarchy's reference positions. The nodes are split at setup into
+// spatial clusters of ≤ kClusterNodes; for each cluster c a reference state (q_c, F_c: the
+// modal coordinates and static-correction loads at which its vertices were last computed
+// exactly) and d_c, those vertices' largest coordinate distance from the hierarchy's
+// reference. Vertex i's displacement is u_i = Φ_i q + Σ_l R_il F_l (R_il = 0 off the surface),
+// so since q_c, F_c each coordinate of a vertex of c moved at most
+//   min(max_{row} ‖Φ_row‖ ‖Δq‖₂, Σ_j max_{row} |Φ_row,j| |Δq_j|) + Σ_l max_{row} ‖R_row,l‖ ‖ΔF_l‖
+// (rows: the cluster's 3 rows per node; precomputed per cluster) plus both computations' float
+// rounding (bounded). A cluster whose d_c + bound is below 0.999 s cannot trigger the refit. Per
+// step: every cluster within → lazy, nothing computed; otherwise the vertices of the clusters
+// beyond are computed exactly and compared with the hierarchy's reference as refit() compares
+// them: none beyond s → still no refit (those clusters take this state as their reference);
+// one beyond s → the full path (every vertex, the refit). Each vertex is computed by the same
+// kernel the full path runs (ModalModel::shape_rows, the one reconstruct() runs, then the
+// static correction summed as reconstruct() sums it), so the positions the narrow phases read
+// are bit-identical to a full reconstruction.
 //
 // Use: begin() after every model step (it snapshots q and the static-correction loads; the
 // vertices are computed from the snapshot, so nothing later in the cycle can make them
@@ -70,17 +76,31 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
                              std::span<std::uint32_t> out_ids,
                              std::size_t& out_count) noexcept override;
 
-  // Since create(): steps taken lazily, and full reconstructions.
+  // Nodes per cluster (the bound's unit; a spatial median split of the rest positions).
+  static constexpr std::uint32_t kClusterNodes = 8;
+  // Reference states kept at once: the last full refresh's, and a ring of the states clusters
+  // were checked at (the oldest's clusters move to the newest). Measured on the cbd duct: 2
+  // (a ring of one) costs less per step than 4 and checks about as many clusters.
+  static constexpr std::uint32_t kEpochs = 2;
+
+  // Since create(): steps taken lazily (some clusters' vertices maybe checked, no refit), of
+  // them the ones that checked clusters, full reconstructions, vertices computed lazily.
   std::uint64_t lazy_steps() const noexcept { return lazy_steps_; }
+  std::uint64_t checked_steps() const noexcept { return checked_steps_; }
   std::uint64_t full_steps() const noexcept { return full_steps_; }
   std::uint64_t vertices_computed() const noexcept { return vertices_computed_; }
-  // The last begin()'s motion bound (m) and the budget it was compared with (m).
-  double last_bound_m() const noexcept { return last_bound_m_; }
-  double last_budget_m() const noexcept { return last_budget_m_; }
+  std::size_t cluster_count() const noexcept { return cluster_start_.size() - 1; }
+  // The clusters' nodes: cluster c is cluster_nodes()[cluster_start(c) .. cluster_start(c+1)).
+  std::span<const std::uint32_t> cluster_nodes() const noexcept { return cluster_nodes_; }
+  std::uint32_t cluster_start(std::size_t cluster) const noexcept { return cluster_start_[cluster]; }
+  // The last begin()'s bound for `cluster` (m: its reference's distance from the hierarchy's
+  // reference + the motion bound + rounding), and the budget (0.999 s). NaN before a full step.
+  double last_cluster_bound_m(std::size_t cluster) const noexcept { return bound_[cluster]; }
+  double budget_m() const noexcept { return budget_m_; }
 
-  // Vertex `node` from the snapshot (rest + Φ_node q + static correction) into out[0..2]: the
-  // kernel both paths use. Public for the tests.
-  void reconstruct_node(std::uint32_t node, float* out) const noexcept;
+  // Vertex `node` from the snapshot (rest + Φ_node q + static correction) into out[0..2] by
+  // the kernel both paths use. For the tests.
+  void reconstruct_node(std::uint32_t node, float* out) noexcept;
 
  private:
   struct Load {
@@ -88,16 +108,58 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
     std::int32_t surface_index;
     float force_n[3];
   };
+  // A state some clusters take as their reference: q, the loads, and (per step, scratch) the
+  // loads' changes since it as (surface index, ‖ΔF‖) pairs.
+  struct Epoch {
+    std::span<float> modes;
+    std::span<Load> loads;
+    std::size_t load_count = 0;
+    double magnitude = 0.0;  // the rounding margin's magnitude of this state
+    double max_used_m = 0.0;  // the largest d_c of its clusters
+    double bound_m = 0.0;     // this step: epoch_bound()
+    std::span<double> abs_dq;  // per step (scratch): |q − this q| per mode, and its 2-norm
+    std::span<float> abs_dq_f;  // idem in float (rounded up)
+    double dq_norm = 0.0;
+    std::uint32_t users = 0;  // clusters referring to it
+    std::span<std::int32_t> delta_index;
+    std::span<double> delta_norm;
+    std::span<float> delta_norm_f;  // idem in float (rounded up)
+    std::size_t delta_count = 0;
+    std::uint64_t delta_step = 0;  // the step the deltas are for
+  };
 
   LazyModalSurface() = default;
-  void ensure_vertex(std::uint32_t node) noexcept;
+  // A non-negative double as a float at least as large, and at least 2^-100 (no product of the
+  // bound's float passes is then subnormal: subnormal arithmetic is ~100 times slower). No libm
+  // call: (1 + 2^-22) more than covers the two roundings.
+  static float float_up(double value) noexcept {
+    const float rounded = static_cast<float>(value) * (1.0F + 0x1p-22F);
+    return rounded < 0x1p-100F ? 0x1p-100F : rounded;  // NaN stays NaN
+  }
+  // Computes the listed nodes not yet current this step (stamps them): Φ q by the model's
+  // kernel, then the static correction and the rest position.
+  void compute_nodes(const std::uint32_t* nodes, std::size_t count) noexcept;
+  void finish_node(std::uint32_t node) noexcept;
+  void compute_remaining() noexcept;  // every node not yet current this step
   void ensure_candidates(std::span<const std::uint32_t> ids) noexcept;
-  double motion_bound() const noexcept;
-  double rounding_margin() const noexcept;
+  void prepare_epoch(Epoch& epoch) noexcept;
+  // The bound of every cluster of `epoch` into bound_ (in packets over the clusters):
+  // d_c + min(‖Φ‖ ‖Δq‖, Σ_j max|Φ_j| |Δq_j|) + Σ_l max‖R_l‖ ‖ΔF_l‖ + rounding.
+  void epoch_cluster_pass(std::uint32_t epoch) noexcept;
+  double epoch_bound(const Epoch& epoch) const noexcept;  // every cluster of the epoch at once
+  double rounding_m(const Epoch& epoch) const noexcept;
+  double state_magnitude(std::span<const float> modes, std::span<const Load> loads) const noexcept;
+  // The next epoch of the ring, holding this step's snapshot; the clusters that referred to
+  // it move to it with their bound of this step as d_c (triangle inequality through this
+  // state: conservative, looser).
+  std::uint32_t take_snapshot_epoch() noexcept;
+  void anchor(std::size_t cluster, std::uint32_t epoch, double deviation) noexcept;
+  void update_max_used() noexcept;
+  float cluster_deviation(std::size_t cluster) const noexcept;
 
   ContactSurface* surface_ = nullptr;  // bound by begin() for this step
+  const model::ModalModel* modal_ = nullptr;  // idem
   std::span<const float> rest_;
-  std::span<const float> mode_shapes_;  // 3n × stored, row-major
   std::span<const float> residual_;     // 3s × 3s, row-major (empty without static correction)
   std::span<const std::int32_t> surface_index_;  // per node, −1 off the surface
   std::uint32_t node_count_ = 0;
@@ -107,37 +169,55 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   bool static_correction_ = false;
   bool lazy_allowed_ = true;  // false: static correction over fewer modes than stored
 
-  double max_shape_norm_ = 0.0;           // max_i ‖Φ_i‖_F over the active columns
-  std::span<double> mode_column_max_;    // per active mode j: max_i ‖φ_ij‖ (3 rows)
-  double max_shape_entry_ = 0.0;          // max |Φ| (rounding margin)
-  double max_rest_abs_ = 0.0;             // max |rest coordinate| (rounding margin)
-  double max_residual_entry_ = 0.0;       // max |R| (rounding margin)
-  std::span<double> residual_column_max_;  // per surface node l: max_k ‖R_kl‖_F
+  // Clusters (setup): nodes, and per cluster the maxima the bound uses.
+  std::span<std::uint32_t> cluster_nodes_;
+  std::span<std::uint32_t> cluster_start_;  // cluster count + 1
+  // Transposed (mode- or load-major, a row of cluster_stride_ floats per mode or surface
+  // node, rounded up), so that one pass bounds every cluster at once in packets.
+  std::size_t cluster_stride_ = 0;
+  std::span<float> shape_max_t_;            // active × stride: max over the rows |Φ_row,j|
+  std::span<float> residual_max_t_;         // s × stride: max over the rows ‖R_row,l‖₂ (rounded up)
+  std::span<double> row_norm_max_;          // cluster: max over rows ‖Φ_row‖₂ (active columns)
+  std::span<double> all_shape_max_;         // active: the maxima over every cluster
+  double all_row_norm_max_ = 0.0;
+  std::span<double> all_residual_max_;      // s: idem
+  double max_shape_entry_ = 0.0;            // max |Φ| (rounding margin)
+  double max_rest_abs_ = 0.0;               // max |rest coordinate| (rounding margin)
+  double max_residual_entry_ = 0.0;         // max |R| (rounding margin)
 
-  // The snapshot of this step, and the state at the hierarchy's last refit.
+  // Per cluster: its reference epoch, its reference's distance from the hierarchy's reference,
+  // and the last bound.
+  std::span<std::uint32_t> cluster_epoch_;
+  std::span<double> used_m_;
+  std::span<double> bound_;
+  std::span<Epoch> epochs_;  // kEpochs, a ring: the clusters' references
+  std::uint32_t latest_epoch_ = 0;
+  std::span<std::uint32_t> checked_;  // scratch: clusters beyond the budget this step
+  std::span<float> checked_deviation_;
+  double budget_m_ = 0.0;
+
+  // The snapshot of this step.
   std::span<float> modes_;
-  std::span<float> reference_modes_;
   std::span<Load> loads_;
-  std::span<Load> reference_loads_;
   std::size_t load_count_ = 0;
-  std::size_t reference_load_count_ = 0;
+  double magnitude_ = 0.0;
   bool reference_valid_ = false;
-  double used_slack_m_ = 0.0;  // the reference positions' distance from the hierarchy's
-  // This step's bound on every vertex's distance (per coordinate) from the hierarchy's
-  // reference positions, for TriangleBvh::query_segment_within; < 0 unknown (the slack).
-  float within_m_ = -1.0F;
   bool full_failed_ = false;
+  // This step's bound on every vertex's distance (per coordinate) from the hierarchy's
+  // reference positions, for TriangleBvh::query_within / query_segment_within; < 0 unknown
+  // (the queries then take the slack).
+  float within_m_ = -1.0F;
 
   std::span<float> full_residual_;  // the full path's Σ_l R_kl F_l over the surface, 3s
   bool full_residual_valid_ = false;
   std::span<std::uint64_t> stamp_;  // per vertex: the step it was computed for
+  std::span<std::uint32_t> pending_;  // scratch: nodes to compute
   std::uint64_t step_ = 0;
 
   std::uint64_t lazy_steps_ = 0;
+  std::uint64_t checked_steps_ = 0;
   std::uint64_t full_steps_ = 0;
   std::uint64_t vertices_computed_ = 0;
-  double last_bound_m_ = 0.0;
-  double last_budget_m_ = 0.0;
 };
 
 }  // namespace trainer::app
