@@ -11,8 +11,9 @@
 //    for the float model (its forces are returned rounded to float); measured 1.6e-13 and
 //    5.5e-8 (2026-11-28, this dev VM).
 //  - Against a cold solve: a second model driven in lockstep whose cache is flushed before
-//    every solve (a dummy solve on other nodes) must give bit-identical forces and states: the
-//    cache, the factorisation reuse and the re-solve after a release change no bit.
+//    every solve (dummy solves on other nodes, which also push out its kept factorisations)
+//    must give bit-identical forces and states: the cache, the factorisation reuse and the
+//    re-solve after a release change no bit.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -134,9 +135,16 @@ double run_random_contact_sequence(const SyntheticModalModel<Scalar>& synthetic,
                                          [node](const Target& t) { return t.node == node; });
       if (!in_solved) flush.push_back(Target{node, Vector3::Constant(static_cast<Scalar>(1e-5))});
     }
-    std::vector<Vector3> flush_forces(flush.size());
-    const core::Status flushed = cold.solve_imposed(flush, flush_forces);
-    EXPECT_TRUE(flushed.is_ok()) << flushed.detail();
+    // kFactorisations distinct node lists (prefixes of `flush`) push every kept factorisation
+    // out: the cold model factorises `solved` again.
+    ASSERT_GE(flush.size(), Model::kFactorisations);
+    for (std::size_t list = 0; list < Model::kFactorisations; ++list) {
+      const std::vector<Target> prefix(flush.begin(),
+                                       flush.end() - static_cast<std::ptrdiff_t>(list));
+      std::vector<Vector3> flush_forces(prefix.size());
+      const core::Status flushed = cold.solve_imposed(prefix, flush_forces);
+      EXPECT_TRUE(flushed.is_ok()) << flushed.detail();
+    }
     cold.clear_forces();
     for (const ReferenceLoad& load : loads)
       EXPECT_TRUE(cold.add_node_force(load.node, load.force_n.template cast<Scalar>()).is_ok());
@@ -146,7 +154,9 @@ double run_random_contact_sequence(const SyntheticModalModel<Scalar>& synthetic,
     std::vector<Vector3> warm_forces(solved.size());
     std::vector<Vector3> cold_forces(solved.size());
     const core::Status warm_status = warm.solve_imposed(solved, warm_forces);
+    const std::uint64_t cold_factorised = cold.contact_factorisations();
     const core::Status cold_status = cold.solve_imposed(solved, cold_forces);
+    EXPECT_EQ(cold.contact_factorisations(), cold_factorised + 1) << "the cold solve factorises";
     EXPECT_TRUE(warm_status.is_ok()) << warm_status.detail();
     EXPECT_TRUE(cold_status.is_ok()) << cold_status.detail();
     const double scale = expected.cwiseAbs().maxCoeff();
@@ -221,6 +231,58 @@ double run_random_contact_sequence(const SyntheticModalModel<Scalar>& synthetic,
   EXPECT_GT(releases, static_cast<std::size_t>(steps / 10));
   EXPECT_GT(reuses, static_cast<std::size_t>(steps / 4));
   return worst;
+}
+
+// A held contact that releases in every step, as in the cbd session (two of three held-contact
+// cycles at 10 kHz): the full list, then the kept rows, step after step. Both lists keep their
+// factorisation (with one kept, both were factorised again in every step), and the forces are
+// those of a model that factorises every solve (its kept lists pushed out before each).
+TEST(ModalContactSolve, HeldContactWithReleasesFactorisesEachListOnce) {
+  using Target = ImposedDisplacement;
+  const auto synthetic = random_model<float>(30, 6, true, 106);
+  core::Arena arena = make_arena();
+  const ModalSettings settings{1e-3F, 0, true};
+  auto held_created = ModalModel::create(synthetic.data(), arena, settings);
+  auto cold_created = ModalModel::create(synthetic.data(), arena, settings);
+  ASSERT_TRUE(held_created && cold_created);
+  ModalModel held = std::move(held_created).value();
+  ModalModel cold = std::move(cold_created).value();
+  std::mt19937 random(12);
+  std::uniform_real_distribution<float> unit(-1e-4F, 1e-4F);
+  const auto solve = [&](const std::vector<Target>& targets) {
+    for (std::size_t list = 0; list < ModalModel::kFactorisations; ++list) {
+      const std::vector<Target> flush(1, Target{static_cast<std::uint32_t>(20 + list),
+                                                ModalModel::Vector3::Constant(1e-5F)});
+      std::vector<ModalModel::Vector3> flush_forces(1);
+      ASSERT_TRUE(cold.solve_imposed(flush, flush_forces).is_ok());
+    }
+    cold.clear_forces();
+    std::vector<ModalModel::Vector3> held_forces(targets.size());
+    std::vector<ModalModel::Vector3> cold_forces(targets.size());
+    ASSERT_TRUE(held.solve_imposed(targets, held_forces).is_ok());
+    ASSERT_TRUE(cold.solve_imposed(targets, cold_forces).is_ok());
+    for (std::size_t k = 0; k < targets.size(); ++k) EXPECT_EQ(held_forces[k], cold_forces[k]);
+  };
+  constexpr int kSteps = 20;
+  for (int step = 0; step < kSteps; ++step) {
+    std::vector<Target> targets;
+    for (const std::uint32_t node : {3U, 7U}) {
+      targets.push_back(Target{node, ModalModel::Vector3(unit(random), unit(random), unit(random))});
+    }
+    held.clear_forces();
+    cold.clear_forces();
+    solve(targets);
+    held.clear_forces();  // the second node lets go: the first one re-solved
+    cold.clear_forces();
+    targets.pop_back();
+    solve(targets);
+    ASSERT_TRUE(held.step().is_ok());
+    ASSERT_TRUE(cold.step().is_ok());
+  }
+  EXPECT_EQ(held.contact_factorisations(), 2U);
+  EXPECT_EQ(cold.contact_factorisations(), static_cast<std::uint64_t>(2 * kSteps * 5));
+  for (std::size_t i = 0; i < held.active_mode_count(); ++i)
+    EXPECT_EQ(held.modal_displacement()[i], cold.modal_displacement()[i]);
 }
 
 TEST(ModalContactSolve, DoubleModelMatchesDenseReferenceAndColdSolves) {

@@ -85,6 +85,7 @@ class BasicModalModel {
 
   static constexpr std::size_t kMaxContacts = 8;      // simultaneous imposed displacements
   static constexpr std::size_t kMaxLoadedNodes = 64;  // distinct nodes carrying a force
+  static constexpr std::size_t kFactorisations = 4;   // contact factorisations kept (LRU)
 
   // Setup path: checks every size, value and index, carves the state from `arena`, and
   // precomputes the Newmark constants per mode. `data`'s arrays must outlive the model.
@@ -117,11 +118,12 @@ class BasicModalModel {
   //   u_k(F) = Φ_k diag(1/k̂) (Φᵀ F + a0 x + a2 v + a) [+ R_kl F_l].
   // Work per call: the compliance block of two nodes is a constant of the model, so it is
   // computed once when a node enters the contact cache (kMaxContacts nodes, the most recently
-  // contacted) and gathered from there afterwards; the factorisation is reused while the
-  // target nodes (and their order) stay the same; the free response of a node (its next-step
-  // displacement without contact forces) is kept for the step, so a re-solve after a release
-  // (clear_forces() and fewer targets, in the same step) only gathers the kept rows and
-  // factorises them. Every value is computed by the same operations as a solve from scratch:
+  // contacted) and gathered from there afterwards; a factorisation is reused whenever the
+  // target nodes (in order) are those of one of the last kFactorisations factorised (a held
+  // contact that releases every step alternates between two lists); the free response of a
+  // node (its next-step displacement without contact forces) is kept for the step, so a
+  // re-solve after a release (clear_forces() and fewer targets, in the same step) only
+  // gathers the kept rows (and factorises them when that list is new). Every value is computed by the same operations as a solve from scratch:
   // the forces are bit-identical to a cold solve (modal_model_test checks it).
   // Refuses (nothing applied): more than kMaxContacts targets, a repeated or unknown node,
   // forces_out shorter than targets, non-finite targets, a non-surface node with static
@@ -151,6 +153,8 @@ class BasicModalModel {
 
   std::uint32_t node_count() const noexcept { return node_count_; }
   std::uint32_t active_mode_count() const noexcept { return active_modes_; }
+  // Contact-matrix factorisations solve_imposed has computed (the others were reused).
+  std::uint64_t contact_factorisations() const noexcept { return factorisations_->computed; }
   Scalar time_step_s() const noexcept { return time_step_s_; }
   bool static_correction() const noexcept { return static_correction_; }
   std::size_t applied_load_count() const noexcept { return pending_count_; }
@@ -267,15 +271,28 @@ class BasicModalModel {
   // transposed orientation then reads the same values, and only one orientation is read.
   bool residual_symmetric_ = false;
   std::uint64_t state_epoch_ = 0;  // counts steps and resets: the free responses' validity
-  // The last accepted factorisation and the target nodes (in order) it was built for.
-  // Constructed from a 1×1 identity, not default-constructed: Eigen's default LDLT leaves its
-  // ComputationInfo uninitialised, and moving the model (Expected<ModalModel>) would copy that
-  // indeterminate enum (undefined behaviour; UBSan's "invalid value for type
-  // 'ComputationInfo'", and a release build that misbehaved after it). Unused while
-  // factorised_count_ is 0; fixed capacity, no heap.
-  Eigen::LDLT<ContactMatrix> factorisation_{ContactMatrix::Identity(1, 1)};
-  std::uint32_t factorised_nodes_[kMaxContacts] = {};
-  std::size_t factorised_count_ = 0;
+  // The last kFactorisations accepted factorisations (arena), each with the target nodes (in
+  // order) it was built for: the contact matrix of a node list is a constant of the model, so a
+  // factorisation stays valid for good. Several are kept because a held contact alternates
+  // between two lists within every step when it releases (the full set, then the kept rows)
+  // — with one kept, both were factorised again every step. Least recently used replaced.
+  struct Factorisation {
+    Eigen::LDLT<ContactMatrix> ldlt;
+    std::uint32_t nodes[kMaxContacts];
+    std::size_t count;  // 0: empty
+    std::uint64_t last_use;
+  };
+  struct FactorisationCache {
+    Factorisation entries[kFactorisations];
+    std::uint64_t clock;
+    std::uint64_t computed;  // factorisations computed so far (tests, measurements)
+  };
+  // The entry factorising the contact matrix of `targets` (looked up, else computed and checked
+  // for singularity); nullptr when it is singular.
+  const Eigen::LDLT<ContactMatrix>* contact_factorisation(
+      std::span<const BasicImposedDisplacement<Scalar>> targets,
+      std::span<const std::uint32_t> slot_of) noexcept;
+  FactorisationCache* factorisations_ = nullptr;
 };
 
 // Both instantiations live in modal_model.cpp.
