@@ -6,6 +6,8 @@
 
 #include "trainer/model/modal_model.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -157,6 +159,51 @@ void BasicModalModel<Scalar>::gather_contact_slots(
   }
 }
 
+// Free responses (Φ_node x⁺₀, from predicted_) of the nodes in three cache slots (a slot may
+// repeat: it is then computed twice, to the same value): nine sums side by side, each in mode
+// order, the same sequence of roundings as one computed alone. Three nodes at a time hide the
+// sums' latency (one node's three chains wait on the adds).
+template <typename Scalar>
+void BasicModalModel<Scalar>::free_responses(std::uint32_t slot_a, std::uint32_t slot_b,
+                                             std::uint32_t slot_c) noexcept {
+  ContactCache& cache = *contact_cache_;
+  const Scalar* a0 = shape_row(cache.nodes[slot_a], 0);
+  const Scalar* a1 = shape_row(cache.nodes[slot_a], 1);
+  const Scalar* a2 = shape_row(cache.nodes[slot_a], 2);
+  const Scalar* b0 = shape_row(cache.nodes[slot_b], 0);
+  const Scalar* b1 = shape_row(cache.nodes[slot_b], 1);
+  const Scalar* b2 = shape_row(cache.nodes[slot_b], 2);
+  const Scalar* c0 = shape_row(cache.nodes[slot_c], 0);
+  const Scalar* c1 = shape_row(cache.nodes[slot_c], 1);
+  const Scalar* c2 = shape_row(cache.nodes[slot_c], 2);
+  double sa0 = 0.0, sa1 = 0.0, sa2 = 0.0, sb0 = 0.0, sb1 = 0.0, sb2 = 0.0, sc0 = 0.0, sc1 = 0.0,
+         sc2 = 0.0;
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    const double p = predicted_[i];
+    sa0 += static_cast<double>(a0[i]) * p;
+    sa1 += static_cast<double>(a1[i]) * p;
+    sa2 += static_cast<double>(a2[i]) * p;
+    sb0 += static_cast<double>(b0[i]) * p;
+    sb1 += static_cast<double>(b1[i]) * p;
+    sb2 += static_cast<double>(b2[i]) * p;
+    sc0 += static_cast<double>(c0[i]) * p;
+    sc1 += static_cast<double>(c1[i]) * p;
+    sc2 += static_cast<double>(c2[i]) * p;
+  }
+  double* ra = cache.free_response + 3 * static_cast<std::size_t>(slot_a);
+  double* rb = cache.free_response + 3 * static_cast<std::size_t>(slot_b);
+  double* rc = cache.free_response + 3 * static_cast<std::size_t>(slot_c);
+  ra[0] = sa0;
+  ra[1] = sa1;
+  ra[2] = sa2;
+  rb[0] = sb0;
+  rb[1] = sb1;
+  rb[2] = sb2;
+  rc[0] = sc0;
+  rc[1] = sc1;
+  rc[2] = sc2;
+}
+
 // The same target nodes in the same order as one of the kept factorisations: the same matrix
 // (every entry a constant of the model), so that factorisation stands. Otherwise the upper
 // triangle of Φ_K diag(1/k̂) Φ_Kᵀ + R_KK is gathered from the contact cache (row node first,
@@ -264,37 +311,33 @@ core::Status BasicModalModel<Scalar>::solve_imposed(
   // A free response is cached only when no load is applied (the usual case at the first solve
   // of a step, and after a release's clear_forces()): with loads, it depends on them.
   const bool unloaded = pending_count_ == 0;
-  bool predicted_ready = false;
   const std::span<const NodeLoad> pending{pending_loads_.data(), pending_count_};
+  // The slots whose free response this step is not cached yet, computed three nodes at a time.
+  std::array<std::uint32_t, kMaxContacts> fresh{};
+  std::size_t fresh_count = 0;
+  for (std::size_t k = 0; k < c; ++k) {
+    const std::uint32_t slot = slot_of[k];
+    if (!unloaded || cache.response_epoch[slot] != state_epoch_) {
+      fresh[fresh_count++] = slot;
+      cache.response_epoch[slot] = unloaded ? state_epoch_ : 0;
+    }
+  }
+  if (fresh_count > 0) {
+    for (std::size_t i = 0; i < active_modes_; ++i) {
+      predicted_[i] =
+          (modal_force_[i] + a0_[i] * x_[i] + a2_[i] * v_[i] + a_[i]) * inverse_k_hat_[i];
+    }
+    for (std::size_t first = 0; first < fresh_count; first += 3) {
+      const std::size_t last = fresh_count - 1;
+      free_responses(fresh[first], fresh[std::min(first + 1, last)],
+                     fresh[std::min(first + 2, last)]);
+    }
+  }
   const auto rows = static_cast<Eigen::Index>(3 * c);
   detail::ContactVector rhs(rows);
   for (std::size_t k = 0; k < c; ++k) {
     const std::uint32_t node_k = targets[k].node;
-    const std::uint32_t slot = slot_of[k];
-    double* free_response = cache.free_response + 3 * static_cast<std::size_t>(slot);
-    if (!unloaded || cache.response_epoch[slot] != state_epoch_) {
-      if (!predicted_ready) {
-        for (std::size_t i = 0; i < active_modes_; ++i) {
-          predicted_[i] =
-              (modal_force_[i] + a0_[i] * x_[i] + a2_[i] * v_[i] + a_[i]) * inverse_k_hat_[i];
-        }
-        predicted_ready = true;
-      }
-      // Three sums side by side, each in mode order (as one computed alone).
-      const Scalar* shape_x = shape_row(node_k, 0);
-      const Scalar* shape_y = shape_row(node_k, 1);
-      const Scalar* shape_z = shape_row(node_k, 2);
-      double sum_x = 0.0, sum_y = 0.0, sum_z = 0.0;
-      for (std::size_t i = 0; i < active_modes_; ++i) {
-        sum_x += static_cast<double>(shape_x[i]) * predicted_[i];
-        sum_y += static_cast<double>(shape_y[i]) * predicted_[i];
-        sum_z += static_cast<double>(shape_z[i]) * predicted_[i];
-      }
-      free_response[0] = sum_x;
-      free_response[1] = sum_y;
-      free_response[2] = sum_z;
-      cache.response_epoch[slot] = unloaded ? state_epoch_ : 0;
-    }
+    const double* free_response = cache.free_response + 3 * static_cast<std::size_t>(slot_of[k]);
     const Eigen::Vector3d static_part = static_response(node_k, pending);
     for (int axis_k = 0; axis_k < 3; ++axis_k) {
       const Eigen::Index row = static_cast<Eigen::Index>(3 * k) + axis_k;

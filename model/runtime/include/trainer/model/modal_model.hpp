@@ -216,6 +216,8 @@ class BasicModalModel {
   void modal_compliance_block(std::uint32_t node_a, std::uint32_t node_b,
                               double (&block)[3][3]) const noexcept;
   void fill_cache_blocks(std::uint32_t slot_a, std::uint32_t slot_b) noexcept;
+  // The free responses of the nodes in three contact-cache slots (repeats allowed).
+  void free_responses(std::uint32_t slot_a, std::uint32_t slot_b, std::uint32_t slot_c) noexcept;
   std::size_t find_pending(std::uint32_t node) const noexcept;
   core::Status add_force(std::uint32_t node, const Eigen::Vector3d& force_n) noexcept;
 
