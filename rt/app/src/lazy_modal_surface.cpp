@@ -67,18 +67,27 @@ void LazyModalSurface::finish_node(std::uint32_t node) noexcept {
   for (std::size_t c = 0; c < 3; ++c) out[c] = out[c] + rest_[3 * static_cast<std::size_t>(node) + c];
 }
 
-void LazyModalSurface::compute_nodes(const std::uint32_t* nodes, std::size_t count) noexcept {
-  std::size_t pending = 0;
-  for (std::size_t k = 0; k < count; ++k) {
-    const std::uint32_t node = nodes[k];
-    if (node >= node_count_ || stamp_[node] == step_) continue;
-    stamp_[node] = step_;
-    pending_[pending++] = node;
-  }
+void LazyModalSurface::mark_pending(std::uint32_t node, std::size_t& pending) noexcept {
+  if (node >= node_count_ || stamp_[node] == step_) return;
+  stamp_[node] = step_;
+  pending_[pending++] = node;
+}
+
+void LazyModalSurface::compute_pending(std::size_t pending) noexcept {
+  // The marked vertices in one kernel call, then their static correction and rest position.
   if (pending == 0) return;
   modal_->shape_rows(pending_.data(), pending, modes_.data(), surface_->deformed.data());
   for (std::size_t k = 0; k < pending; ++k) finish_node(pending_[k]);
   vertices_computed_ += pending;
+}
+
+void LazyModalSurface::compute_nodes(const std::uint32_t* nodes, std::size_t count) noexcept {
+  std::size_t pending = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::uint32_t node = nodes[k];
+    mark_pending(node, pending);
+  }
+  compute_pending(pending);
 }
 
 void LazyModalSurface::reconstruct_node(std::uint32_t node, float* out) noexcept {
@@ -428,15 +437,10 @@ void LazyModalSurface::ensure_candidates(std::span<const std::uint32_t> ids) noe
     if (base + 2 >= surface_->triangles.size()) continue;
     for (std::size_t c = 0; c < 3; ++c) {
       const std::uint32_t node = surface_->triangles[base + c];
-      if (node >= node_count_ || stamp_[node] == step_) continue;
-      stamp_[node] = step_;
-      pending_[pending++] = node;
+      mark_pending(node, pending);
     }
   }
-  if (pending == 0) return;
-  modal_->shape_rows(pending_.data(), pending, modes_.data(), surface_->deformed.data());
-  for (std::size_t k = 0; k < pending; ++k) finish_node(pending_[k]);
-  vertices_computed_ += pending;
+  compute_pending(pending);
 }
 
 core::Status LazyModalSurface::query(const model::Aabb& box, std::span<std::uint32_t> out_ids,

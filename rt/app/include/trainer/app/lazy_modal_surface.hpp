@@ -139,6 +139,10 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // Computes the listed nodes not yet current this step (stamps them): Φ q by the model's
   // kernel, then the static correction and the rest position.
   void compute_nodes(const std::uint32_t* nodes, std::size_t count) noexcept;
+  // A vertex not yet current this step joins pending_ (and is stamped); compute_pending then
+  // computes the first `pending` of them.
+  void mark_pending(std::uint32_t node, std::size_t& pending) noexcept;
+  void compute_pending(std::size_t pending) noexcept;
   void finish_node(std::uint32_t node) noexcept;
   void compute_remaining() noexcept;  // every node not yet current this step
   void ensure_candidates(std::span<const std::uint32_t> ids) noexcept;
