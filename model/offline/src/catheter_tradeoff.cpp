@@ -9,6 +9,7 @@
 #include <limits>
 #include <utility>
 
+#include "catheter_reference_substep.hpp"
 #include "cycle_cost_summary.hpp"
 #include "trainer/core/arena.hpp"
 
@@ -63,8 +64,8 @@ std::array<double, 4> station_arc_lengths(const CatheterScenario& scenario, doub
 CatheterParams params_at(const CatheterStudySpec& spec, std::uint32_t particle_count) {
   CatheterParams params = spec.params;
   params.particle_count = particle_count;
-  // The wall contact is explicit: the substep keeps its stiffness stable (as modelc derives it
-  // from the definition's [contact]).
+  // The contact stiffness as modelc passes it from the definition's [contact] (it no longer
+  // enters the substep: contacts are linearly implicit).
   params.contact_stiffness_n_per_m = std::max(params.contact_stiffness_n_per_m,
                                               static_cast<float>(spec.contact.stiffness_n_per_m));
   params.damping_n_s_per_m = static_cast<float>(
@@ -172,6 +173,9 @@ class ReferenceChain {
         static_cast<double>(params.bending_stiffness_n_m2) / chain.stiffness_.rest_length_m;
     chain.stiffness_.root_tangent = Vector::UnitX();
     chain.mass_kg_ = static_cast<double>(params.linear_density_kg_per_m) * length_m / count;
+    chain.bending_omega_squared_ =
+        20.0 * chain.stiffness_.bending_n_m_per_rad /
+        (chain.mass_kg_ * chain.stiffness_.rest_length_m * chain.stiffness_.rest_length_m);
     chain.damping_n_s_per_m_ = static_cast<double>(params.damping_n_s_per_m);
     chain.radius_m_ = static_cast<double>(params.outer_radius_m);
     chain.substeps_ = runtime->substeps_per_period();
@@ -217,14 +221,47 @@ class ReferenceChain {
   }
   Vector hold_force_n(std::uint32_t particle) const { return hold_forces_n_[particle]; }
 
-  // Catheter::step and Catheter::substep, line for line, in double.
+  // Catheter::step and its substeps, line for line, in double.
   core::Status step(double period_s) {
     saved_positions_ = positions_;
     for (Vector& force : hold_forces_n_) force.setZero();
     const double dt_s = period_s / static_cast<double>(substeps_);
     const double fraction = 1.0 / static_cast<double>(substeps_);
     const std::size_t n = positions_.size();
-    for (std::uint32_t k = 0; k < substeps_; ++k) {
+    // Catheter::step's choice: the explicit-bending substep while it resolves bending and the
+    // planes explicitly, else the implicit one (catheter_reference_substep.cpp).
+    const double stiffest_plane = wall_.empty() ? 0.0 : contact_.stiffness_n_per_m;
+    const bool explicit_path =
+        dt_s * dt_s * (bending_omega_squared_ + stiffest_plane / mass_kg_) <= 1.0;
+    if (!explicit_path) {
+      std::vector<std::size_t> particles(wall_.size());
+      std::vector<Vector> points(wall_.size());
+      for (std::size_t k = 0; k < wall_.size(); ++k) {
+        particles[k] = wall_[k].particle;
+        points[k] = wall_[k].point_m;
+      }
+      detail::ReferenceChainState state;
+      state.stiffness = &stiffness_;
+      state.mass_kg = mass_kg_;
+      state.damping_n_s_per_m = damping_n_s_per_m_;
+      state.radius_m = radius_m_;
+      state.contact = contact_;
+      state.wall_particles = particles;
+      state.wall_points_m = points;
+      state.wall_normal = wall_normal_;
+      state.positions = &positions_;
+      state.velocities = &velocities_;
+      state.external_n = external_n_;
+      state.targets_m = targets_m_;
+      state.saved_positions_m = saved_positions_;
+      state.hold_forces_n = hold_forces_n_;
+      state.held = held_;
+      for (std::uint32_t k = 0; k < substeps_; ++k) {
+        detail::reference_implicit_substep(state, dt_s, period_s, fraction,
+                                           static_cast<double>(k + 1) * fraction);
+      }
+    }
+    for (std::uint32_t k = 0; k < substeps_ && explicit_path; ++k) {
       const double hold_step = static_cast<double>(k + 1) * fraction;
       for (std::size_t i = 0; i < n; ++i) forces_[i] = external_n_[i];  // damping: implicit
       add_chain_forces<double>(positions_, stiffness_, forces_, held_);
@@ -326,6 +363,7 @@ class ReferenceChain {
   std::vector<Vector> solution_;
   ChainStiffness<double> stiffness_{};
   double mass_kg_ = 0.0;
+  double bending_omega_squared_ = 0.0;  // 20 k_b/(m l0²)
   double damping_n_s_per_m_ = 0.0;
   double radius_m_ = 0.0;
   std::uint32_t substeps_ = 1;

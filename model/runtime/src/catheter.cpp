@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "catheter_refusal.hpp"
@@ -81,6 +82,10 @@ core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
   catheter.max_substeps_ = max_substeps;
   catheter.stiffness_.axial_n_per_m = chain.axial_n_per_m;
   catheter.stiffness_.bending_n_m_per_rad = chain.bending_n_m_per_rad;
+  catheter.bending_omega_squared_ =
+      20.0 * static_cast<double>(chain.bending_n_m_per_rad) /
+      (static_cast<double>(chain.particle_mass_kg) * static_cast<double>(chain.rest_length_m) *
+       static_cast<double>(chain.rest_length_m));
   catheter.stiffness_.rest_length_m = chain.rest_length_m;
   catheter.direction_ = rest_direction;
   catheter.stiffness_.root_tangent = rest_direction;
@@ -100,16 +105,26 @@ core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
                            std::pair{&catheter.hold_targets_m_, "catheter hold targets"},
                            std::pair{&catheter.saved_positions_, "catheter saved positions"},
                            std::pair{&catheter.saved_velocities_, "catheter saved velocities"},
-                           std::pair{&catheter.hold_forces_n_, "catheter hold forces"}}) {
+                           std::pair{&catheter.hold_forces_n_, "catheter hold forces"},
+                           std::pair{&catheter.contact_n_, "catheter contact forces"}}) {
     auto taken = take(*out, what);
     if (!taken) return std::move(taken).error();
   }
-  auto block_inverse = arena.allocate_array<Eigen::Matrix3d>(n, "catheter solve blocks");
-  if (!block_inverse) return std::move(block_inverse).error();
-  catheter.block_inverse_ = block_inverse.value();
+  for (auto [out, count, what] :
+       {std::tuple{&catheter.diagonal_, n, "catheter solve diagonal"},
+        std::tuple{&catheter.band1_, n - 1, "catheter solve band"},
+        std::tuple{&catheter.block_inverse_, n, "catheter solve blocks"},
+        std::tuple{&catheter.lower_, n, "catheter solve factors"}}) {
+    auto span = arena.allocate_array<Eigen::Matrix3d>(count, what);
+    if (!span) return std::move(span).error();
+    *out = span.value();
+  }
   auto coupling = arena.allocate_array<SegmentCoupling>(n - 1, "catheter solve couplings");
   if (!coupling) return std::move(coupling).error();
   catheter.coupling_ = coupling.value();
+  auto band2 = arena.allocate_array<double>(n - 2, "catheter solve second band");
+  if (!band2) return std::move(band2).error();
+  catheter.band2_ = band2.value();
   auto solution = arena.allocate_array<Eigen::Vector3d>(n, "catheter solve vector");
   if (!solution) return std::move(solution).error();
   catheter.solution_ = solution.value();
@@ -130,6 +145,18 @@ core::Expected<Catheter> Catheter::allocate(const CatheterParams& params,
         arena.allocate_array<Vec3>(max_contact_planes, "catheter contact plane forces");
     if (!plane_forces) return std::move(plane_forces).error();
     catheter.plane_forces_n_ = plane_forces.value();
+    auto gains = arena.allocate_array<float>(max_contact_planes, "catheter contact plane gains");
+    if (!gains) return std::move(gains).error();
+    catheter.plane_gain_ = gains.value();
+    auto plane_force = arena.allocate_array<float>(max_contact_planes, "catheter contact plane force");
+    if (!plane_force) return std::move(plane_force).error();
+    catheter.plane_force_ = plane_force.value();
+    for (auto [out, what] : {std::pair{&catheter.plane_spring_gain_, "catheter contact plane spring gains"},
+                             std::pair{&catheter.plane_start_, "catheter contact plane start forces"}}) {
+      auto span = arena.allocate_array<float>(max_contact_planes, what);
+      if (!span) return std::move(span).error();
+      *out = span.value();
+    }
   }
   return catheter;
 }
@@ -213,7 +240,7 @@ void Catheter::reset() noexcept {
   plane_count_ = 0;
 }
 
-void Catheter::explicit_forces(float fraction) noexcept {
+void Catheter::explicit_forces(float dt_s, float fraction) noexcept {
   const std::span<Vec3> forces = forces_.first(count_);
   for (std::uint32_t i = 0; i < count_; ++i) forces[i] = external_n_[i];
   // Segments once: the axial forces at the current positions and the units bending needs.
@@ -251,122 +278,64 @@ void Catheter::explicit_forces(float fraction) noexcept {
     forces[0] += gradient_b;
     forces[1] -= gradient_b;
   }
+  // Contact planes: their force at the substep start, f = clamp(k depth − c (ẋ − v_s)·n, 0,
+  // max), applied in the solve (assemble()). Active and unclamped at the start, a plane is
+  // linearly implicit (its stiffness and damper in the matrix, gain h k + c); clamped
+  // (pulling, or at max_force_n) it stays a constant explicit force. Planes between particles
+  // that are not neighbours do not fit the band: explicit.
+  if (explicit_path_) {  // the explicit-bending substep: planes explicit, as they always were
+    for (std::size_t k = 0; k < plane_count_; ++k) {
+      const ContactPlane& plane = planes_[k];
+      const float w = plane.weight_b;
+      const Vec3 point = (1.0F - w) * positions_[plane.particle_a] + w * positions_[plane.particle_b];
+      const float depth = plane.reach_m - (point - plane.point_m).dot(plane.normal);
+      if (!(depth > 0.0F)) continue;
+      const Vec3 velocity = (1.0F - w) * velocities_[plane.particle_a] + w * velocities_[plane.particle_b];
+      float magnitude = plane.stiffness_n_per_m * depth -
+                        plane.damping_n_s_per_m * (velocity - plane.surface_velocity_m_per_s).dot(plane.normal);
+      magnitude = std::clamp(magnitude, 0.0F, plane.max_force_n);
+      const Vec3 force = magnitude * plane.normal;
+      forces[plane.particle_a] += (1.0F - w) * force;
+      if (w != 0.0F) forces[plane.particle_b] += w * force;
+      plane_forces_n_[k] += fraction * force;
+    }
+    return;
+  }
+  const float explicit_contact_stiffness = mass_kg_ / (dt_s * dt_s);
   for (std::size_t k = 0; k < plane_count_; ++k) {
     const ContactPlane& plane = planes_[k];
     const float w = plane.weight_b;
     const Vec3 point = (1.0F - w) * positions_[plane.particle_a] + w * positions_[plane.particle_b];
     const float depth = plane.reach_m - (point - plane.point_m).dot(plane.normal);
+    plane_gain_[k] = 0.0F;
+    plane_spring_gain_[k] = 0.0F;
+    plane_force_[k] = 0.0F;
     if (!(depth > 0.0F)) continue;
     const Vec3 velocity = (1.0F - w) * velocities_[plane.particle_a] + w * velocities_[plane.particle_b];
-    float magnitude = plane.stiffness_n_per_m * depth -
-                      plane.damping_n_s_per_m * (velocity - plane.surface_velocity_m_per_s).dot(plane.normal);
-    magnitude = std::clamp(magnitude, 0.0F, plane.max_force_n);
-    const Vec3 force = magnitude * plane.normal;
-    forces[plane.particle_a] += (1.0F - w) * force;
-    if (w != 0.0F) forces[plane.particle_b] += w * force;
-    plane_forces_n_[k] += fraction * force;
-  }
-}
-
-void Catheter::solve_velocities(float dt_s, float period_fraction) noexcept {
-  // Linearly implicit Euler for the axial springs and the damping, explicit for the rest:
-  //   m (v' − v) = h [F(p) − b v' − H (p' − p)],  p' = p + h v'
-  //   ⇒ ((m + h b) I + h² H) v' = m v + h F(p),
-  // H the axial springs' Hessian, per segment k_s [g I + (1 − g) û ûᵀ] with
-  // g = max(0, 1 − l0/l) (tension's geometric stiffness; compression's negative one stays in
-  // the explicit force). SPD, block tridiagonal: block Thomas (LDLᵀ) elimination in double.
-  const double h = static_cast<double>(dt_s);
-  const double h2k = h * h * static_cast<double>(stiffness_.axial_n_per_m);
-  const double l0 = static_cast<double>(stiffness_.rest_length_m);
-  const double mass = static_cast<double>(mass_kg_);
-  const double diagonal = mass + h * static_cast<double>(damping_n_s_per_m_);
-  for (std::uint32_t s = 0; s + 1 < count_; ++s) {
-    SegmentCoupling& coupling = coupling_[s];
-    const double length = static_cast<double>(segment_lengths_[s]);
-    if (!(length > 0.0)) {
-      coupling = SegmentCoupling{};
+    const float magnitude = plane.stiffness_n_per_m * depth -
+                            plane.damping_n_s_per_m * (velocity - plane.surface_velocity_m_per_s).dot(plane.normal);
+    plane_start_[k] = magnitude;
+    const std::uint32_t apart = plane.particle_a > plane.particle_b ? plane.particle_a - plane.particle_b
+                                                                    : plane.particle_b - plane.particle_a;
+    // Only the stiffness beyond m/h² (what the explicit substep kept stable, ω h ≤ 1) goes
+    // into the matrix, and with it the damper: a contact the substep resolves stays explicit
+    // and keeps its restitution (implicit Euler would damp it by 1/(1 + ω²h²) per substep).
+    const float implicit_stiffness = plane.stiffness_n_per_m - explicit_contact_stiffness;
+    if (apart > 1 || !(implicit_stiffness > 0.0F)) {  // explicit for the whole substep
+      plane_force_[k] = std::clamp(magnitude, 0.0F, plane.max_force_n);
       continue;
     }
-    const double g = std::clamp(1.0 - l0 / length, 0.0, 1.0);
-    coupling.unit = segment_units_[s].cast<double>();
-    coupling.isotropic = h2k * g;
-    coupling.along = h2k * (1.0 - g);
-  }
-  // Forward elimination (block LDLᵀ): D'_i = D_i − C D'_{i−1}⁻¹ C, r'_i = r_i − C D'_{i−1}⁻¹ r'_{i−1}
-  // with C = −(a I + b û ûᵀ) symmetric, so with w = D'⁻¹ û:
-  //   C D'⁻¹ C = a² D'⁻¹ + a b (w ûᵀ + û wᵀ) + b² (û·w) û ûᵀ,   C D'⁻¹ r' = −(a y + b (û·y) û), y = D'⁻¹ r'.
-  // A held particle's velocity is known (its hold path): its row is the identity, and its
-  // couplings move to the free neighbours' right-hand sides.
-  const float dt_over_period = dt_s / period_fraction;  // the step's period
-  const auto hold_velocity = [&](std::uint32_t i) {
-    return Eigen::Vector3d(((hold_targets_m_[i] - saved_positions_[i]) / dt_over_period).cast<double>());
-  };
-  for (std::uint32_t i = 0; i < count_; ++i) {
-    if (held_[i] != 0) {
-      solution_[i] = hold_velocity(i);
-      block_inverse_[i].setIdentity();
-      continue;
+    // Implicit-capable: off (pulling), at the clamp (explicit max_force_n), or a spring (in
+    // the matrix), as at the substep start; the solve may move it (update_planes()).
+    plane_spring_gain_[k] = dt_s * implicit_stiffness + plane.damping_n_s_per_m;
+    if (!(magnitude > 0.0F)) continue;
+    if (magnitude >= plane.max_force_n) {
+      plane_force_[k] = plane.max_force_n;
+    } else {
+      plane_force_[k] = magnitude;
+      plane_gain_[k] = plane_spring_gain_[k];
     }
-    Eigen::Matrix3d block = Eigen::Matrix3d::Identity() * diagonal;
-    Eigen::Vector3d rhs = mass * velocities_[i].cast<double>() + h * forces_[i].cast<double>();
-    const auto add_segment = [&block](const SegmentCoupling& c) {
-      block.diagonal().array() += c.isotropic;
-      block.noalias() += c.along * (c.unit * c.unit.transpose());
-    };
-    if (i > 0) add_segment(coupling_[i - 1]);  // the segments at i
-    if (i + 1 < count_) add_segment(coupling_[i]);
-    if (i > 0) {
-      const SegmentCoupling& c = coupling_[i - 1];
-      if (held_[i - 1] != 0) {
-        rhs += c.times(solution_[i - 1]);  // −C v_held
-      } else {
-        const Eigen::Matrix3d& previous = block_inverse_[i - 1];
-        const Eigen::Vector3d w = previous * c.unit;
-        const Eigen::Vector3d y = previous * solution_[i - 1];
-        block.noalias() -= (c.along * c.along * c.unit.dot(w)) * (c.unit * c.unit.transpose());
-        if (c.isotropic != 0.0) {
-          block.noalias() -= (c.isotropic * c.isotropic) * previous;
-          block.noalias() -= (c.isotropic * c.along) * (w * c.unit.transpose() + c.unit * w.transpose());
-        }
-        rhs += c.times(y);
-      }
-    }
-    if (i + 1 < count_ && held_[i + 1] != 0) rhs += coupling_[i].times(hold_velocity(i + 1));
-    block_inverse_[i] = block.inverse();
-    solution_[i] = rhs;
   }
-  // Back substitution: v_i = D'_i⁻¹ (r'_i − C_i v_{i+1}), free neighbours only.
-  for (std::uint32_t k = count_; k-- > 0;) {
-    if (held_[k] != 0) continue;
-    if (k + 1 < count_ && held_[k + 1] == 0) solution_[k] += coupling_[k].times(solution_[k + 1]);
-    solution_[k] = block_inverse_[k] * solution_[k];
-  }
-}
-
-bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
-  explicit_forces(fraction);
-  solve_velocities(dt_s, fraction);
-  bool finite = true;
-  const double h = static_cast<double>(dt_s);
-  for (std::uint32_t i = 0; i < count_; ++i) {
-    if (held_[i] != 0) {
-      // The pin balances every force on the particle over the substep, the implicit ones at
-      // their end-of-substep values: F(p) − b v' − h Σ_s H_s (v'_i − v'_j). The holder feels it.
-      Eigen::Vector3d force = forces_[i].cast<double>() -
-                              static_cast<double>(damping_n_s_per_m_) * solution_[i];
-      if (i > 0) force -= coupling_[i - 1].times(solution_[i] - solution_[i - 1]) / h;
-      if (i + 1 < count_) force -= coupling_[i].times(solution_[i] - solution_[i + 1]) / h;
-      hold_forces_n_[i] += fraction * force.cast<float>();
-      const Vec3 start = saved_positions_[i];
-      positions_[i] = hold_step >= 1.0F ? hold_targets_m_[i] : Vec3(start + hold_step * (hold_targets_m_[i] - start));
-      velocities_[i] = (hold_targets_m_[i] - start) / (dt_s / fraction);
-      continue;
-    }
-    velocities_[i] = solution_[i].cast<float>();  // v_{t+Δt} from the implicit solve
-    positions_[i] += dt_s * velocities_[i];       // p_{t+Δt} = p_t + Δt v_{t+Δt}
-    finite = finite && positions_[i].allFinite() && velocities_[i].allFinite();
-  }
-  return finite;
 }
 
 core::Status Catheter::step(float period_s) noexcept {
@@ -384,9 +353,20 @@ core::Status Catheter::step(float period_s) noexcept {
   for (std::size_t k = 0; k < plane_count_; ++k) plane_forces_n_[k].setZero();
   const float dt_s = period_s / static_cast<float>(substeps);
   const float fraction = 1.0F / static_cast<float>(substeps);
+  // The explicit-bending substep while it resolves bending and every plane (ω h ≤ 1, the
+  // integrator's stable step before the implicit bending): bit-identical to it there.
+  double stiffest_plane = 0.0;
+  for (std::size_t k = 0; k < plane_count_; ++k) {
+    stiffest_plane = std::max(stiffest_plane, static_cast<double>(planes_[k].stiffness_n_per_m));
+  }
+  const double h = static_cast<double>(dt_s);
+  explicit_path_ =
+      h * h * (bending_omega_squared_ + stiffest_plane / static_cast<double>(mass_kg_)) <= 1.0;
   bool finite = true;
   for (std::uint64_t k = 0; k < substeps && finite; ++k) {
-    finite = substep(dt_s, fraction, static_cast<float>(k + 1) * fraction);
+    const float hold_step = static_cast<float>(k + 1) * fraction;
+    finite = explicit_path_ ? substep_tridiagonal(dt_s, fraction, hold_step)
+                            : substep(dt_s, fraction, hold_step);
   }
   if (!finite) {
     restore_saved_state();

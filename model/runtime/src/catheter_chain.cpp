@@ -55,10 +55,10 @@ core::Expected<void> check_params(const CatheterParams& params) {
 
 double catheter_stable_substep_s(double mass_kg, double bending_n_m_per_rad, double rest_length_m,
                                  double contact_stiffness_n_per_m) noexcept {
+  (void)contact_stiffness_n_per_m;
   const double omega_max_squared =
-      20.0 * bending_n_m_per_rad / (mass_kg * rest_length_m * rest_length_m) +
-      contact_stiffness_n_per_m / mass_kg;
-  return 0.5 * 2.0 / std::sqrt(omega_max_squared);
+      kCatheterRemainderShare * 20.0 * bending_n_m_per_rad / (mass_kg * rest_length_m * rest_length_m);
+  return 2.0 / std::sqrt(omega_max_squared);
 }
 
 core::Expected<CatheterChain> derive_catheter_chain(const CatheterParams& params) {
@@ -112,15 +112,14 @@ core::Expected<std::uint32_t> catheter_substeps_per_period(const CatheterParams&
     return catheter_refusal(
         "a haptic period of " + catheter_number(haptic_period_s) + " s needs " +
         std::to_string(needed) + " substeps of at most " + catheter_number(chain.stable_substep_s) +
-        " s (stable step of the explicit bending and contact from EI = " +
-        catheter_number(params.bending_stiffness_n_m2) + " N·m², contact stiffness " +
-        catheter_number(params.contact_stiffness_n_per_m) + " N/m, particle mass " +
+        " s (the largest substep of the linearly implicit chain, from EI = " +
+        catheter_number(params.bending_stiffness_n_m2) + " N·m², particle mass " +
         catheter_number(chain.particle_mass_kg) + " kg, segment " +
         catheter_number(chain.rest_length_m) + " m; EA = " +
-        catheter_number(params.axial_stiffness_n) + " N and damping " +
+        catheter_number(params.axial_stiffness_n) + " N, damping " +
         catheter_number(chain.damping_n_s_per_m) +
-        " N·s/m are implicit) but max_substeps = " + std::to_string(max_substeps) +
-        ": raise max_substeps, use fewer particles, a softer EI or contact, or a shorter period");
+        " N·s/m and contacts do not limit it) but max_substeps = " + std::to_string(max_substeps) +
+        ": raise max_substeps, use fewer particles, a softer EI, or a shorter period");
   }
   return static_cast<std::uint32_t>(needed);
 }

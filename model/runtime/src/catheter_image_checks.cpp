@@ -203,10 +203,10 @@ Expected<void> check_derivation(const CatheterParametersV1& r, std::string_view 
   if (!(d(r.stable_substep_s) <= bound * (1.0 + kDerivationTolerance))) {
     return field_error(
         label, "stable_substep_s",
-        "is " + number(r.stable_substep_s) + " s, above the stable step " +
+        "is " + number(r.stable_substep_s) + " s, above the largest substep " +
             number(static_cast<float>(bound)) +
-            " s of the record's own mass, bending stiffness, segment and contact "
-            "stiffnesses: the chain would be integrated unstably");
+            " s of the record's own mass, bending stiffness and segment"
+            ": the chain would be integrated unstably");
   }
   const float limit = contact_stiffness_limit_n_per_m(r.particle_mass_kg, r.stable_substep_s);
   for (const NamedFloat& field : {NamedFloat{"wall_stiffness_n_per_m", r.wall_stiffness_n_per_m},
@@ -215,7 +215,7 @@ Expected<void> check_derivation(const CatheterParametersV1& r, std::string_view 
       return field_error(
           label, field.name,
           "is " + number(field.value) + " N/m, above " + number(limit) +
-              " N/m, the stiffest contact the substep keeps stable (particle_mass_kg / "
+              " N/m, the stiffest contact accepted (1e5 particle_mass_kg / "
               "stable_substep_s^2)");
     }
   }

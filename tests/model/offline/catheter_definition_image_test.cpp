@@ -101,26 +101,32 @@ TEST_F(CatheterDefinitionImage, ModelcBuildWritesALoadableImageForEachScene) {
   }
 }
 
-TEST_F(CatheterDefinitionImage, AStiffContactShortensTheSubstepAndModelcWarnsBeyondTheBudget) {
+TEST_F(CatheterDefinitionImage, AStiffContactKeepsTheSubstepAStiffBendingShortensIt) {
   const fs::path config = copy_config();
-  // Contacts are explicit, so the substep keeps the stiffer [contact] stiffness stable:
-  // 1e5 N/m on the cbd chain (m = 2.25e-5 kg) needs ω² = 20 k_b/(m l0²) + k/m = 4.45e9 s⁻², a
-  // substep of 14.98 µs, 67 per 1 ms period: beyond max_substeps = 64. modelc writes the image
-  // (its contact within the limit of its own substep, which the loader checks) and warns that
-  // the trainer will refuse the scene at this period.
+  // Contacts are linearly implicit: 1e5 N/m on the cbd chain keeps its 1 substep per 1 ms.
   const fs::path definition = config / "models/catheter_cbd.toml";
-  std::stringstream text;
-  text << std::ifstream(definition).rdbuf();
-  std::string edited = text.str();
-  const std::string from = "wall_stiffness_n_per_m = 500.0";
-  ASSERT_NE(edited.find(from), std::string::npos);
-  edited.replace(edited.find(from), from.size(), "wall_stiffness_n_per_m = 1.0e5");
-  std::ofstream(definition, std::ios::trunc) << edited;
-  EXPECT_EQ(run(MODELC_PATH,
-                "build --scene " + (config / "scenes/cbd.toml").string() + " --only catheter"),
-            0)
+  const auto edit = [&](const std::string& from, const std::string& to) {
+    std::stringstream text;
+    text << std::ifstream(definition).rdbuf();
+    std::string edited = text.str();
+    ASSERT_NE(edited.find(from), std::string::npos) << from;
+    edited.replace(edited.find(from), from.size(), to);
+    std::ofstream(definition, std::ios::trunc) << edited;
+  };
+  edit("wall_stiffness_n_per_m = 500.0", "wall_stiffness_n_per_m = 1.0e5");
+  const std::string command =
+      "build --scene " + (config / "scenes/cbd.toml").string() + " --only catheter";
+  EXPECT_EQ(run(MODELC_PATH, command), 0) << output_;
+  EXPECT_NE(output_.find("largest substep 1248.08 us: 1 substeps per 1000.0 us loop period (budget 64)"),
+            std::string::npos)
       << output_;
-  EXPECT_NE(output_.find("stable substep 14.98 us: 67 substeps per 1000.0 us loop period (budget 64)"),
+  // The bending's remainder sets the substep: 2/ω_r, ω_r² = ¼ · 20 k_b/(m l0²). EI = 0.3 N·m²
+  // (7,700× the cbd catheter's) gives ω_r² = 1.98e10 s⁻², 14.23 µs, 71 per 1 ms period: beyond
+  // max_substeps = 64. modelc writes the image and warns that the trainer will refuse the
+  // scene at this period.
+  edit("bending_stiffness_n_m2 = 3.9e-5", "bending_stiffness_n_m2 = 0.3");
+  EXPECT_EQ(run(MODELC_PATH, command), 0) << output_;
+  EXPECT_NE(output_.find("largest substep 14.23 us: 71 substeps per 1000.0 us loop period (budget 64)"),
             std::string::npos)
       << output_;
   EXPECT_NE(output_.find("warning: at this loop period the catheter needs more substeps than its "

@@ -17,7 +17,7 @@
 namespace trainer::model::offline {
 namespace {
 
-// config/models/catheter_cbd.toml [catheter] (N = 11 needs 6 substeps of its budget of 64).
+// config/models/catheter_cbd.toml [catheter] (N = 11 needs 1 substep of its budget of 64).
 CatheterStudySpec cbd_spec() {
   CatheterStudySpec spec;
   spec.params.length_m = 0.15F;
@@ -140,10 +140,10 @@ TEST(CatheterTrade, GraspFeelsTheWallNormalOnceSettled) {
 // budget, 21 refused, and 21 measured beyond it. One test, because ctest runs every test case
 // in a process of its own and the study is the expensive part.
 TEST(CatheterTrade, ErrorsFallWithTheParticleCountCostsGrowAndTheBudgetRefuses) {
-  // A budget of 12 substeps: N = 11 needs 6 (the linearly implicit chain's substep, set by
-  // its bending and 500 N/m wall: 175 µs), N = 21 needs 15 and is refused.
+  // A budget of 3 substeps: N = 11 needs 1 (the largest substep of the linearly implicit chain,
+  // set by the bending's remainder: 1248 µs), N = 21 needs 4 (312 µs) and is refused.
   CatheterStudySpec spec = cbd_spec();
-  spec.max_substeps = 12;
+  spec.max_substeps = 3;
   auto created = CatheterTradeStudy::create(spec, short_scenarios(0.15));
   ASSERT_TRUE(created) << created.error().message;
   const CatheterTradeStudy& study = **created;
@@ -177,10 +177,9 @@ TEST(CatheterTrade, ErrorsFallWithTheParticleCountCostsGrowAndTheBudgetRefuses) 
   EXPECT_GT(coarse->worst_error, fine->worst_error);
   EXPECT_GT(fine->tuning_error, 0.0);
   EXPECT_GT(fine->validation_error, 0.0);
-  // N = 11 runs 6 substeps of 11 particles, N = 6 fewer of 6.
-  EXPECT_EQ(fine->substeps_per_period, 6U);
-  EXPECT_GT(coarse->substeps_per_period, 0U);
-  EXPECT_LT(coarse->substeps_per_period, fine->substeps_per_period);
+  // N = 11 runs 1 substep of 11 particles, N = 6 one of 6.
+  EXPECT_EQ(fine->substeps_per_period, 1U);
+  EXPECT_EQ(coarse->substeps_per_period, 1U);
   for (const CatheterTradePoint* point : {coarse, fine}) {
     EXPECT_GT(point->cost.median_ns, 0.0);
     EXPECT_GE(point->cost.p99_ns, point->cost.median_ns);
@@ -199,8 +198,8 @@ TEST(CatheterTrade, ErrorsFallWithTheParticleCountCostsGrowAndTheBudgetRefuses) 
   const CatheterTradePoint* refused = &refused_point;
   EXPECT_TRUE(refused->refused);
   EXPECT_FALSE(refused->measured);
-  EXPECT_GT(refused->substeps_per_period, 12U);
-  EXPECT_NE(refused->refusal.find("max_substeps = 12"), std::string::npos) << refused->refusal;
+  EXPECT_GT(refused->substeps_per_period, 3U);
+  EXPECT_NE(refused->refusal.find("max_substeps = 3"), std::string::npos) << refused->refusal;
   EXPECT_TRUE(refused->errors.empty());
   EXPECT_EQ(refused->cost.median_ns, 0.0);
 

@@ -170,10 +170,11 @@ TEST_F(CatheterImage, TheCatheterFromTheImageIsTheCatheterFromItsParameters) {
     EXPECT_EQ(from_image->positions_m()[i], from_params->positions_m()[i]) << i;
   }
   // The budget is checked against the period at create, as from parameters.
-  auto refused = Catheter::create(data, 0.02F, 4, arena);
+  const float long_period_s = 100.0F * data.chain.stable_substep_s;  // 100 substeps
+  auto refused = Catheter::create(data, long_period_s, 4, arena);
   ASSERT_FALSE(refused);
-  const std::uint64_t needed =
-      catheter_substeps_for(static_cast<double>(0.02F), static_cast<double>(data.chain.stable_substep_s));
+  const std::uint64_t needed = catheter_substeps_for(static_cast<double>(long_period_s),
+                                                     static_cast<double>(data.chain.stable_substep_s));
   EXPECT_GT(needed, 64U);
   EXPECT_NE(refused.error().message.find("needs " + std::to_string(needed) + " substeps"),
             std::string::npos)
@@ -223,15 +224,15 @@ TEST_F(CatheterImage, MissingSectionsAndWrongShapesAreRefused) {
                   "section 'catheter_rest_positions' has 4 rows, expected 5 (catheter_parameters "
                   "particle_count)"));
   EXPECT_TRUE(failed_with(load_bytes(raw_image(record, 124, positions, 5)), label(),
-                          "section 'catheter_parameters' is 124 bytes, record version 2 has 128"));
+                          "section 'catheter_parameters' is 124 bytes, record version 3 has 128"));
   EXPECT_TRUE(failed_with(
       load_bytes(raw_image(record, 3, positions, 5)), label(),
       "section 'catheter_parameters' is 3 bytes: too short to hold its record_version"));
   // Another record version is refused before its size or any field is read.
   CatheterParametersV1 newer = record;
-  newer.record_version = 3;
+  newer.record_version = 4;
   EXPECT_TRUE(failed_with(load_bytes(raw_image(newer, 160, positions, 5)), label(),
-                          "catheter record version 3, this build reads 2: rebuild it with modelc"));
+                          "catheter record version 4, this build reads 3: rebuild it with modelc"));
   // Rest positions: a NaN is caught by the finite check of every float section.
   std::vector<float> with_nan = positions;
   with_nan[7] = std::numeric_limits<float>::quiet_NaN();
@@ -329,13 +330,12 @@ TEST_F(CatheterImage, EveryRecordFieldIsChecked) {
       // A substep above the stability bound of the record's own constants.
       {offsetof(CatheterParametersV1, stable_substep_s), 1.5F * good.stable_substep_s,
        "the chain would be integrated unstably"},
-      // Contacts stiffer than the substep keeps stable: the substep is derived with
-      // max(wall, tool) stiffness (explicit contacts), so the stored one exceeds the bound.
-      {offsetof(CatheterParametersV1, wall_stiffness_n_per_m), 1e6F,
-       "stable_substep_s is 0.0001645663 s, above the stable step 4.449205e-06 s of the record's "
-       "own mass, bending stiffness, segment and contact stiffnesses"},
-      {offsetof(CatheterParametersV1, tool_stiffness_n_per_m), 1e6F,
-       "above the stable step 4.449205e-06 s"},
+      // Contacts stiffer than the stiffest accepted one (1e5 m / h²: contacts are linearly
+      // implicit and no longer shorten the substep).
+      {offsetof(CatheterParametersV1, wall_stiffness_n_per_m), 1e9F,
+       "wall_stiffness_n_per_m is 1e+09 N/m, above "},
+      {offsetof(CatheterParametersV1, tool_stiffness_n_per_m), 1e9F,
+       "the stiffest contact accepted"},
   };
   for (const FloatCase& c : floats) {
     EXPECT_TRUE(failed_with(load_with_field(c.offset, c.value), label(), c.fragment)) << c.fragment;
@@ -347,11 +347,11 @@ TEST_F(CatheterImage, EveryRecordFieldIsChecked) {
   };
   const CountCase counts[] = {
       {offsetof(CatheterParametersV1, record_version), 0,
-       "catheter record version 0, this build reads 2: rebuild it with modelc"},
-      {offsetof(CatheterParametersV1, record_version), 1,
-       "catheter record version 1, this build reads 2"},
-      {offsetof(CatheterParametersV1, record_version), 3,
-       "catheter record version 3, this build reads 2"},
+       "catheter record version 0, this build reads 3: rebuild it with modelc"},
+      {offsetof(CatheterParametersV1, record_version), 2,
+       "catheter record version 2, this build reads 3"},
+      {offsetof(CatheterParametersV1, record_version), 4,
+       "catheter record version 4, this build reads 3"},
       {offsetof(CatheterParametersV1, particle_count), 2,
        "section 'catheter_parameters' particle_count is 2, expected 3..256"},
       {offsetof(CatheterParametersV1, particle_count), 257,

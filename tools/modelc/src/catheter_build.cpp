@@ -36,7 +36,7 @@ nlohmann::json build_catheter_model(const std::string& name,
 
   char line[256];
   std::snprintf(line, sizeof line,
-                "model '%s': catheter, %u particles, segment %.2f mm, stable substep %.2f us: %llu "
+                "model '%s': catheter, %u particles, segment %.2f mm, largest substep %.2f us: %llu "
                 "substeps per %.1f us loop period (budget %u)\n  built in %.3f ms\n",
                 name.c_str(), record->particle_count,
                 1e3 * static_cast<double>(record->rest_length_m), 1e6 * substep_s,

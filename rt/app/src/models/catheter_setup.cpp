@@ -135,8 +135,8 @@ core::Expected<void> check_contact_stiffness(const CatheterModelState& state) {
     if (value > limit) {
       return core::make_error("[contact] " + std::string(key) + " = " + std::to_string(value) +
                               " N/m: expected at most " + std::to_string(limit) +
-                              " N/m, the stiffest contact this catheter's substep keeps stable "
-                              "(particle mass / substep^2)");
+                              " N/m, the stiffest contact this catheter accepts "
+                              "(1e5 particle mass / substep^2)");
     }
     return {};
   };

@@ -1,9 +1,10 @@
 // The particle catheter at run time (Basdogan §V-C-2, eq. 27–28; METHODS.md §2): N particles
 // uniformly along the centreline joined by linear (axial) springs and torsional (bending)
 // springs, viscous dissipation per particle, external forces, held particles (forceps jaws,
-// introducer) and an optional clamped start. Integrated linearly implicitly in the axial springs
-// and the damping and explicitly (semi-implicit Euler, eq. 28) in the bending and the contacts,
-// sub-stepped inside one haptic period at a step the model computes for itself.
+// introducer) and an optional clamped start. Integrated linearly implicitly (axial springs,
+// bending through its Hessian at the straight chain, damping, the stiff part of the active
+// contact planes), every force itself evaluated at the substep's positions (Basdogan eq. 27–28
+// as an IMEX step), sub-stepped inside one haptic period at a step the model computes itself.
 //
 // Mapping of the beam to the chain (derivation in docs/catheter.md):
 //   l0  = L/(N−1)            rest segment length (m)
@@ -23,14 +24,18 @@
 //   insertion, docs/tradeoff-models.md); with them at second order.
 //   Dissipation −b v with b in N·s/m per particle (not a damping ratio).
 //
-// Stability (docs/catheter.md, "Integration and stable step"): each substep solves
-// ((m + h b) I + h² H_axial) v' = m v + h F(p) (block tridiagonal, 3×3 blocks, double), which
-// has no step limit; what stays explicit sets it: ω_max² ≤ 20 k_b/(m l0²) (the bending stencil
-// k_b/l0² [1 −4 6 −4 1] has spectral radius 16, 20 covers the 2 k_b root and grasp hinges by
-// Gershgorin) + k_contact/m (CatheterParams::contact_stiffness_n_per_m), substep
-// 0.5 · 2/ω_max. Tension's transverse geometric stiffness k_s (1 − l0/l) is in the implicit
-// Hessian; compression's, −k_s (l0/l − 1), stays explicit and grows without bound as a segment
-// collapses: step() refuses a segment crushed below kMinSegmentRatio · l0.
+// Stability (docs/catheter.md, "Integration and substep"): each substep solves
+// A v' = m v + h F̂(p, v), A = (m + h b) I + h² (H_axial + K_b) + h Σ (h k̃ + c) W n nᵀ Wᵀ
+// (block pentadiagonal, 3×3 blocks, double): H_axial the axial Hessian (tension's transverse
+// geometric stiffness k_s (1 − l0/l) included; compression's negative one stays explicit and
+// grows without bound as a segment collapses: step() refuses a segment crushed below
+// kMinSegmentRatio · l0), K_b = Σ k_i/l0² d dᵀ ⊗ I3 the bending's Hessian at the straight chain
+// (d = [1 −2 1]; the clamped root's and grasp hinges' 2 k_b), and per contact plane active and
+// unclamped at the substep start its stiffness beyond m/h² (k̃ = k − m/h²: a contact the
+// substep resolves stays explicit and keeps its restitution) with its damper. For a linear
+// system this dissipates whenever the matrix's stiffness is at least half the true one;
+// the substep bounds the bending's nonlinear remainder: 2/ω_r, ω_r² = ¼ · 20 k_b/(m l0²)
+// (catheter_stable_substep_s).
 //
 // Precision: float positions/velocities (SI), internal sums in float. Memory: every array is
 // carved from a core::Arena at create(); after create() everything is noexcept, heap-free and
@@ -62,9 +67,9 @@ struct CatheterSetup {
   std::uint32_t max_contact_planes = 64;  // contact planes one step may take (set_contact_planes)
 };
 
-// One unilateral contact held for one step(), evaluated at every substep (so a stiff contact
-// stays stable at the substep, not the haptic period, while collision detection runs once per
-// period). The catheter's material point x = (1 − w) p_a + w p_b (w = weight_b; a point on
+// One unilateral contact held for one step(), evaluated at every substep (linearly implicit in
+// its stiffness beyond m/h² while active and unclamped at the substep start; collision detection
+// runs once per period). The catheter's material point x = (1 − w) p_a + w p_b (w = weight_b; a point on
 // the segment between two particles, or a particle itself with w = 0) must stay at least
 // reach_m from the plane through point_m with unit normal `normal` on its positive side:
 //   depth = reach_m − (x − point_m)·normal,
@@ -305,12 +310,13 @@ class Catheter {
   std::span<const Vec3> contact_plane_forces_n() const noexcept {
     return {plane_forces_n_.data(), plane_count_};
   }
-  // The stiffest contact the substep keeps stable alongside the chain: m / Δt_sub² (ω Δt ≤ 1
-  // for the contact spring alone).
+  // The stiffest contact accepted: 1e5 m / Δt_sub² (contacts are linearly implicit;
+  // contact_stiffness_limit_n_per_m).
   float max_contact_stiffness_n_per_m() const noexcept;
 
   // Advances by period_s in ceil(period_s / stable_substep_s()) equal substeps (linearly
-  // implicit axial springs and damping, explicit bending and contacts).
+  // implicit; a plane whose end-of-substep force leaves [0, max_force_n] is made explicit at
+  // the bound and the substep solved again, at most 4 solves, the last with every plane explicit).
   // Refuses (state unchanged) a non-positive/non-finite period or one needing more substeps
   // than the budget (invalid_argument). If any position or velocity becomes non-finite, or a
   // segment ends shorter than kMinSegmentRatio of its rest length (crushed: a compression of
@@ -364,18 +370,33 @@ class Catheter {
   // false if the state became non-finite. `fraction` is this substep's share of the step
   // (averaging), `hold_step` how far through the step it ends (hold interpolation, 0..1].
   bool substep(float dt_s, float fraction, float hold_step) noexcept;
+  // The same while the substep resolves bending and contacts explicitly (explicit_path_):
+  // implicit axial springs and damping only, a block-tridiagonal solve (catheter_tridiagonal.cpp).
+  bool substep_tridiagonal(float dt_s, float fraction, float hold_step) noexcept;
+  void solve_tridiagonal(float dt_s, float period_fraction) noexcept;
   // The substep's explicit forces into forces_: external, axial at the current positions,
   // bending, contact planes; and the segments' unit vectors and lengths (segment_units_).
-  void explicit_forces(float fraction) noexcept;
-  // The linearly implicit velocity update: assembles (m + h b) I + h² H_axial (block
-  // tridiagonal, 3×3 blocks, held particles eliminated) and solves it for the new velocities
-  // into solution_ (docs/catheter.md, "Integration and stable step").
-  void solve_velocities(float dt_s, float period_fraction) noexcept;
+  // Marks the planes active and unclamped at the substep start for the implicit solve
+  // (plane_gain_ = h k + c).
+  void explicit_forces(float dt_s, float fraction) noexcept;
+  // The linearly implicit velocity update (catheter_solve.cpp): assembles
+  // (m + h b) I + h² (H_axial + K_bending) + h Σ (h k + c) W n nᵀ Wᵀ (block pentadiagonal,
+  // 3×3 blocks, held particles eliminated) and solves it for the new velocities into solution_
+  // (docs/catheter.md, "Integration and substep").
+  void assemble(float dt_s, float period_fraction) noexcept;
+  void factor_and_solve() noexcept;
+  // After a solve, each implicit-capable plane takes the state its end-of-substep spring force
+  // f_end = f + c n·ẋ − (h k̃ + c) n·ẋ' says: a spring above max_force_n goes to the clamp
+  // (explicit max), below 0 off; a clamped one whose f_end is below the clamp becomes a
+  // spring. True if any changed (the substep is solved again).
+  bool update_planes() noexcept;
   // Back to the state at the start of step(), with no hold or contact forces reported.
   void restore_saved_state() noexcept;
   bool crushed() const noexcept;  // some segment shorter than kMinSegmentRatio · l0
 
   std::uint32_t count_ = 0;
+  bool explicit_path_ = false;  // this step's substeps: h² (ω_b² + k_max/m) ≤ 1 (see step())
+  double bending_omega_squared_ = 0.0;  // ω_b² = 20 k_b/(m l0²)
   float mass_kg_ = 0.0F;
   float damping_n_s_per_m_ = 0.0F;
   float radius_m_ = 0.0F;
@@ -396,10 +417,19 @@ class Catheter {
   std::span<Vec3> saved_velocities_;
   std::span<Vec3> hold_forces_n_;    // mean over the last step, per particle
   // Scratch of the implicit solve (double: the axial blocks h² k_s reach 1e6 m at the stiffest
-  // accepted EA, and float would lose the transverse directions to rounding).
-  std::span<Eigen::Matrix3d> block_inverse_;  // N: inverse of the eliminated diagonal blocks
-  // h² H_s of segment s = isotropic·I + along·û ûᵀ (the off-diagonal block is −that); kept in
-  // this form, the elimination needs matrix-vector products only.
+  // accepted EA, and float would lose the transverse directions to rounding). The matrix
+  // (docs/catheter.md, "Integration and substep") is block pentadiagonal: diagonal blocks,
+  // first off-diagonal blocks (symmetric 3×3: axial, bending, contact) and a scalar second
+  // off-diagonal (bending only, times I). Factored by block LDLᵀ into D⁻¹ and L_{i,i−1}; the
+  // second-band factor α D⁻¹ is recomputed where needed.
+  std::span<Eigen::Matrix3d> diagonal_;       // N: A_ii (kept for the holders' forces)
+  std::span<Eigen::Matrix3d> band1_;          // N − 1: A_{s,s+1} = A_{s+1,s}
+  std::span<double> band2_;                   // N − 2: A_{s,s+2} = band2_[s] · I
+  std::span<Eigen::Matrix3d> block_inverse_;  // N: D_i⁻¹
+  std::span<Eigen::Matrix3d> lower_;          // N: L_{i,i−1}
+  std::span<Eigen::Vector3d> solution_;       // N: right-hand side, then the new velocities
+  // h² H_s of segment s = isotropic·I + along·û ûᵀ (the off-diagonal block is −that), for the
+  // block-tridiagonal solve of the explicit-bending substep (catheter_tridiagonal.cpp).
   struct SegmentCoupling {
     Eigen::Vector3d unit = Eigen::Vector3d::Zero();
     double isotropic = 0.0;
@@ -409,7 +439,12 @@ class Catheter {
     }
   };
   std::span<SegmentCoupling> coupling_;       // N − 1
-  std::span<Eigen::Vector3d> solution_;       // N: right-hand side, then the new velocities
+  std::span<float> plane_gain_;               // per plane: h k̃ + c while implicit, else 0
+  std::span<float> plane_force_;              // per plane: the force applied explicitly, or a
+                                              // spring's start force (N)
+  std::span<float> plane_spring_gain_;        // per plane: h k̃ + c if it may be implicit, else 0
+  std::span<float> plane_start_;              // per plane: k depth − c ẋ_rel·n at the start (N)
+  std::span<Vec3> contact_n_;                 // N: the planes' right-hand-side forces
   std::span<Vec3> segment_units_;             // N − 1: unit segment vectors of the substep
   std::span<float> segment_lengths_;          // N − 1
   std::span<ContactPlane> planes_;   // max_contact_planes

@@ -155,10 +155,10 @@ static_assert(offsetof(ImageMetadataV1, reserved) == 136);
 // the constants modelc derived (model::derive_catheter_chain, docs/catheter.md). The record has
 // its own version, checked before anything else in it: a change to this record is a new
 // record_version (the container's format_version stays), and a loader refuses every version
-// but its own. Reserved bytes must be zero. Version 2 (same layout): stable_substep_s is the
-// step of the linearly implicit integrator (explicit bending and contacts only), derived with
-// max(wall, tool) stiffness; a version-1 image's substep was the explicit axial springs'.
-inline constexpr std::uint32_t kCatheterRecordVersion = 2;
+// but its own. Reserved bytes must be zero. Version 3 (same layout): stable_substep_s is the
+// largest substep of the integrator with implicit bending and contacts (2/ω_r, docs/catheter.md);
+// version 2's was the explicit bending's and contacts', version 1's the explicit axial springs'.
+inline constexpr std::uint32_t kCatheterRecordVersion = 3;
 struct CatheterParametersV1 {
   std::uint32_t record_version;  // kCatheterRecordVersion
   std::uint32_t particle_count;  // N, 3..Catheter::kMaxParticles
@@ -171,7 +171,7 @@ struct CatheterParametersV1 {
   float bending_stiffness_n_m_per_rad;  // k_b = EI / l0
   float radius_m;                       // outer radius: each particle's sphere in contact
   float damping_n_s_per_m;              // b per particle, >= 0
-  float stable_substep_s;               // largest stable substep (the period is the scene's)
+  float stable_substep_s;               // largest substep (the period is the scene's)
   // Placement (the definition's [pose]).
   float rest_direction[3];   // unit rest tangent: the clamped root's hinge direction
   float gravity_m_per_s2[3];  // applied by the trainer as m·g on every particle
