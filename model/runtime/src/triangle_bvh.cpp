@@ -464,7 +464,7 @@ core::Status TriangleBvh::query_segment_cached_within(const Vec3& p0, const Vec3
   }
   const SegmentBoxTest test(p0, p1, margin);
   return answer_from_cache(cache, [&test](const AabbPack4& pack) { return test.meets4(pack); }, p0, p1, margin_m,
-                           deviation_m, out_ids, out_count);
+                           deviation_m, reuse ? kBoundsPerQuery : 0, out_ids, out_count);
 }
 
 core::Status TriangleBvh::query_sphere_cached_within(const Vec3& centre, float radius_m, float deviation_m,
@@ -496,7 +496,7 @@ core::Status TriangleBvh::query_sphere_cached_within(const Vec3& centre, float r
     cache.box = wide;
   }
   return answer_from_cache(cache, [&shrunk](const AabbPack4& pack) { return SegmentBoxTest::overlaps4(pack, shrunk); },
-                           centre, centre, radius_m, deviation_m, out_ids, out_count);
+                           centre, centre, radius_m, deviation_m, reuse ? kBoundsPerQuery : 0, out_ids, out_count);
 }
 
 bool TriangleBvh::cache_current(QueryCache& cache, bool sphere) const noexcept {
@@ -555,8 +555,8 @@ bool TriangleBvh::fill_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p
 
 template <class Accept4>
 core::Status TriangleBvh::answer_from_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p0, const Vec3& p1,
-                                            float reach_m, float deviation_m, std::span<std::uint32_t> out_ids,
-                                            std::size_t& out_count) noexcept {
+                                            float reach_m, float deviation_m, int budget,
+                                            std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
   // How far the query moved since the cache was filled (Euclidean: corresponding points of
   // the two segments are no farther apart than their ends).
   const double moved = std::max((p0.cast<double>() - cache.p0.cast<double>()).norm(),
@@ -579,7 +579,11 @@ core::Status TriangleBvh::answer_from_cache(QueryCache& cache, Accept4&& accept4
       lanes &= lanes - 1;
       const std::size_t k = 4 * pack + lane;
       const std::uint32_t id = cache.ids[k];
-      if (cache.below_m[k] < 0.0) {
+      if (cache.below_m[k] < 0.0 && budget > 0) {
+        // Each triangle's bound once per fill, at most `budget` per call (none in the call
+        // that fills: every cache fills in the cycle after a refit, already a slow one, and
+        // would compute ~10 each). A triangle without its bound yet is kept.
+        --budget;
         const std::uint32_t* vertex = triangles_.data() + 3 * static_cast<std::size_t>(id);
         cache.below_m[k] = segment_triangle_distance_below(cache.p0, cache.p1, bvh_vertex(reference_, vertex[0]),
                                                            bvh_vertex(reference_, vertex[1]),

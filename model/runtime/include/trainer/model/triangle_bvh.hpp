@@ -79,6 +79,8 @@ class TriangleBvh final : public TriangleBroadPhase {
   // Deepest hierarchy create() accepts (a median split of 2^32 triangles in leaves of 1 is 33
   // deep): the query's traversal stack is this long.
   static constexpr std::size_t kMaxDepth = 40;
+  // Reference-triangle bounds a cached query computes per call at most (the others wait).
+  static constexpr int kBoundsPerQuery = 3;
 
   // Setup path. `positions_m`: 3n floats (x y z per vertex), `triangles`: 3m vertex indices.
   // Refuses (naming what and the value): no triangle, a length not a multiple of 3, an index
@@ -209,7 +211,8 @@ class TriangleBvh final : public TriangleBroadPhase {
   bool fill_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p0, const Vec3& p1) noexcept;
   template <class Accept4>
   core::Status answer_from_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p0, const Vec3& p1, float reach_m,
-                                 float deviation_m, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+                                 float deviation_m, int budget, std::span<std::uint32_t> out_ids,
+                                 std::size_t& out_count) noexcept;
 
   std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
   std::span<Node> nodes_;
