@@ -67,7 +67,7 @@ class TriangleBroadPhase {
   // query_segment() for a query repeated cycle after cycle by a segment that moves a little
   // (a tool's capsule): the broad phase may keep candidates in `cache` (one per repeated
   // query, owned by the caller) and answer from them while they are still a superset
-  // (TriangleBvh: docs/collision.md "Cached segment queries"). The contract is query_segment()'s
+  // (TriangleBvh: docs/collision.md "Cached queries"). The contract is query_segment()'s
   // for every triangle within margin_m: each such triangle returned, in increasing id order
   // where the broad phase orders them, and possibly fewer others. This default ignores the cache.
   virtual core::Status query_segment_cached(const Vec3& p0, const Vec3& p1, float margin_m, QueryCache& cache,

@@ -165,7 +165,7 @@ class SegmentBoxTest {
 // hair outside still gives a plane distance, which never exceeds the true one), and 0 for a
 // crossing (idem); a triangle whose normal is 0 in double is its edges. Less 1e-7 m, far more
 // than double rounding on metre-scale input. TriangleBvh's cached segment queries
-// (docs/collision.md "Cached segment queries") keep a triangle while this bound, taken once
+// (docs/collision.md "Cached queries") keep a triangle while this bound, taken once
 // per cache against the hierarchy's reference positions, allows it within reach.
 namespace segment_bound_detail {
 using Vec3d = Eigen::Vector3d;

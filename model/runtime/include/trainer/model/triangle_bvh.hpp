@@ -37,13 +37,14 @@
 
 namespace trainer::model {
 
-// Candidates of one repeated segment query (a tool capsule's, cycle after cycle), kept by
-// TriangleBvh::query_segment_cached_within: the triangles whose stored box the segment passed
-// with the query's margin plus extra_margin_m when they were collected, their boxes in packs of
-// 4, and per triangle a lower bound of its reference triangle's distance from that segment
-// (computed when first needed). Valid while the hierarchy has not refitted and the segment has
-// moved less than the extra margin (docs/collision.md "Cached segment queries"). Storage from
-// an arena at create(); the owner keeps one per repeated query; one thread.
+// Candidates of one repeated query (a tool capsule's segment or a catheter particle's sphere,
+// cycle after cycle), kept by TriangleBvh::query_segment_cached_within /
+// query_sphere_cached_within: the triangles whose stored box passed the query's own test with
+// extra_margin_m more when they were collected, their boxes in packs of 4, and per triangle a
+// lower bound of its reference triangle's distance from the query's segment (a sphere: its
+// centre), computed when first needed. Valid while the hierarchy has not refitted and the query
+// has moved less than the extra margin (docs/collision.md "Cached queries"). Storage from an
+// arena at create(); the owner keeps one per repeated query; one thread.
 struct QueryCache {
   static constexpr std::size_t kDefaultCapacity = 128;
   static constexpr float kDefaultExtraMarginM = 1e-3F;
@@ -127,8 +128,10 @@ class TriangleBvh final : public TriangleBroadPhase {
   // query's own box test (so every triangle query_segment_within returns passes it) and then
   // against a bound on the triangle itself: each vertex is within D (the stated deviation, or
   // the slack) of the reference positions per coordinate, so a triangle whose reference
-  // triangle is farther than margin_m + √3 D (+ how far the segment moved) from the segment
-  // cannot be within margin_m. Returns, in increasing id order, every triangle within margin_m
+  // triangle is farther than margin_m + √3 D (+ how far the segment moved since the fill, + the
+  // narrow phase's float rounding: 1 µm + 1e-4 of the coordinates) from the segment cannot be
+  // within margin_m (at most kBoundsPerQuery bounds computed per call, none in a filling call;
+  // a triangle without one is kept). Returns, in increasing id order, every triangle within margin_m
   // of the segment and a subset of query_segment_within's list. A cache overflow (more than
   // its capacity) answers by query_segment_within and leaves the cache empty.
   core::Status query_segment_cached_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
