@@ -18,6 +18,10 @@ using detail::triangle_vertices;
 using detail::vertex_position;
 
 constexpr std::uint32_t kNoSlot = std::numeric_limits<std::uint32_t>::max();
+// A particle's kept candidates: its query box grown by 0.25 mm (a particle's box, some 5 mm
+// across, holds tens of the duct's slack-grown boxes; 1 mm more on each side overflowed 64).
+constexpr std::size_t kParticleCacheCapacity = 128;
+constexpr float kParticleCacheMarginM = 2.5e-4F;
 using detail::kMinDirectionDistanceM;
 
 // How much farther than reach a triangle's box must be for the particle's exact test to be
@@ -87,7 +91,20 @@ core::Expected<ParticleSurfaceContact> ParticleSurfaceContact::create(
   auto candidates = arena.allocate_array<Candidate>(settings.max_candidates, "particle contact patches");
   if (!candidates) return fail(candidates.error());
 
+  std::span<QueryCache> caches;
+  if (settings.cached_particles > 0) {
+    auto carved = arena.allocate_array<QueryCache>(settings.cached_particles, "particle contact query caches");
+    if (!carved) return fail(carved.error());
+    caches = carved.value();
+    for (QueryCache& cache : caches) {
+      auto made = QueryCache::create(arena, kParticleCacheCapacity, kParticleCacheMarginM);
+      if (!made) return fail(made.error());
+      cache = std::move(made).value();
+    }
+  }
+
   ParticleSurfaceContact contact;
+  contact.caches_ = caches;
   contact.settings_ = settings;
   contact.particle_forces_n_ = particle_forces.value();
   contact.records_ = records.value();
@@ -187,7 +204,10 @@ core::Status ParticleSurfaceContact::particle_contacts(std::size_t particle, con
                                                        std::span<const float> surface_velocities,
                                                        TriangleBroadPhase& grid) noexcept {
   std::size_t id_count = 0;
-  core::Status status = grid.query(Aabb::around_point(centre_m, reach_m), candidate_ids_, id_count);
+  core::Status status =
+      particle < caches_.size()
+          ? grid.query_sphere_cached(centre_m, reach_m, caches_[particle], candidate_ids_, id_count)
+          : grid.query(Aabb::around_point(centre_m, reach_m), candidate_ids_, id_count);
   // capacity_exceeded: the ids returned are still used (a crowded region keeps its contacts).
   if (!status.is_ok() && status.code() != core::StatusCode::capacity_exceeded) return status;
   if (id_count == 0) return status;  // nothing near (most particles): no patch, no contact

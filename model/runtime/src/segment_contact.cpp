@@ -85,6 +85,11 @@ core::Expected<SegmentSurfaceContact> SegmentSurfaceContact::create(const Segmen
   contact.spheres_[1] = spheres->subspan(settings.max_candidates);
   contact.settings_ = settings;
   contact.candidate_ids_ = candidate_ids.value();
+  for (QueryCache& cache : contact.caches_) {
+    auto made = QueryCache::create(arena);
+    if (!made) return fail(made.error());
+    cache = std::move(made).value();
+  }
   contact.candidates_ = candidates.value();
   return contact;
 }
@@ -134,6 +139,7 @@ void SegmentSurfaceContact::clear_outputs() noexcept {
 void SegmentSurfaceContact::reset() noexcept {
   clear_outputs();
   sides_.fill(0);
+  for (QueryCache& cache : caches_) cache.invalidate();
 }
 
 std::size_t SegmentSurfaceContact::write_node_forces(std::span<NodeForce> out) noexcept {
@@ -238,7 +244,7 @@ core::Status SegmentSurfaceContact::segment_contact(const ToolCapsule& capsule, 
   }
   std::size_t id_count = 0;
   core::Status status =
-      grid.query_segment(capsule.start_m, capsule.end_m, reach_m, candidate_ids_, id_count);
+      grid.query_segment_cached(capsule.start_m, capsule.end_m, reach_m, caches_[segment_index], candidate_ids_, id_count);
   if (status.code() == core::StatusCode::capacity_exceeded) {
     ++candidate_overflow_count_;  // the ids returned are still used: a crowded region keeps its contact
   } else if (!status.is_ok()) {

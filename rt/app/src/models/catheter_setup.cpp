@@ -162,6 +162,7 @@ core::Expected<void> add_wall_contacts(CatheterModelState& state,
     settings.surface_offset_m = 0.0F;  // the planes carry the wall's half-thickness in their reach
     settings.max_force_n = state.contact.max_contact_force_n;
     settings.side = model::ContactSide::inner;
+    settings.cached_particles = count;  // each particle's wall candidates kept between cycles
     auto contact = model::ParticleSurfaceContact::create(settings, arena);
     if (!contact) return std::move(contact).error();
     state.walls[m].emplace(std::move(contact).value());

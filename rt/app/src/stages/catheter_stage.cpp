@@ -1,5 +1,7 @@
 #include "stages/catheter_stage.hpp"
 
+#include "stages/cached_queries.hpp"
+
 #include <algorithm>
 
 namespace trainer::app {
@@ -44,10 +46,11 @@ bool CatheterStage::add_wall_planes(std::size_t index, std::size_t& plane_count)
     // The hierarchy's root box holds every triangle box a query can return: the particles
     // outside it (most of the catheter) are not queried (docs/catheter.md, "Issue 19, round 2").
     const model::Aabb* bounds = wall.grid && wall.grid->ready() ? &wall.grid->bounds() : nullptr;
+    CachedQueries queries(wall);  // each particle's candidates kept between cycles
     const core::Status found =
         state.walls[m]->compute(state.model_frame_positions.first(positions.size()),
                                 state.model_frame_velocities.first(positions.size()),
-                                detection_radius, wall.view(), {}, wall.broad_phase(), state.wall_out[m],
+                                detection_radius, wall.view(), {}, queries, state.wall_out[m],
                                 bounds);
     if (!found.is_ok()) ok = false;
     stats.dropped_contacts += state.wall_out[m].dropped_count;

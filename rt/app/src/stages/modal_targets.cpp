@@ -1,5 +1,7 @@
 #include "stages/modal_targets.hpp"
 
+#include "stages/cached_queries.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -125,6 +127,7 @@ void gather_segment_targets(ModalModelState& state, std::span<const InstrumentFr
   for (std::size_t k = 0; k < out.count; ++k) out.segment_of[k] = -1;
   out.segment_count = 0;
   const model::TriangleMeshView view = surface.view();
+  CachedQueries queries(surface);
   for (std::size_t i = 0; i < instruments.size(); ++i) {
     if (!state.segments[i]) continue;
     const kinematics::InstrumentPose& pose = instruments[i].pose;
@@ -140,7 +143,7 @@ void gather_segment_targets(ModalModelState& state, std::span<const InstrumentFr
     const float shaft_offset_m = add_clipped_shaft(surface, transform.to_model(pose.shaft_start_m),
                                                    hinge, velocity, capsules, capsule_count);
     model::SegmentSurfaceContact& contact = *state.segments[i];
-    if (!contact.update(std::span(capsules.data(), capsule_count), view, {}, surface.broad_phase()).is_ok())
+    if (!contact.update(std::span(capsules.data(), capsule_count), view, {}, queries).is_ok())
       ++errors;
     for (const model::SegmentContact& found : contact.contacts()) {
       add_segment_target(state, i, found, shaft_offset_m, out);

@@ -23,6 +23,7 @@
 namespace trainer::model {
 
 using Vec3 = Eigen::Vector3f;
+struct QueryCache;  // triangle_bvh.hpp
 
 struct Aabb {
   Vec3 min_m = Vec3::Zero();
@@ -61,6 +62,27 @@ class TriangleBroadPhase {
       return {core::StatusCode::invalid_argument, "broad phase: segment margin negative or non-finite"};
     }
     return query(Aabb::around_segment(p0, p1, margin_m), out_ids, out_count);
+  }
+
+  // query_segment() for a query repeated cycle after cycle by a segment that moves a little
+  // (a tool's capsule): the broad phase may keep candidates in `cache` (one per repeated
+  // query, owned by the caller) and answer from them while they are still a superset
+  // (TriangleBvh: docs/collision.md "Cached queries"). The contract is query_segment()'s
+  // for every triangle within margin_m: each such triangle returned, in increasing id order
+  // where the broad phase orders them, and possibly fewer others. This default ignores the cache.
+  virtual core::Status query_segment_cached(const Vec3& p0, const Vec3& p1, float margin_m, QueryCache& cache,
+                                            std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
+    (void)cache;
+    return query_segment(p0, p1, margin_m, out_ids, out_count);
+  }
+
+  // query(Aabb::around_point(centre, radius_m)) for a repeated query (a catheter particle's),
+  // the same contract for every triangle within radius_m of the centre; the default ignores
+  // the cache.
+  virtual core::Status query_sphere_cached(const Vec3& centre, float radius_m, QueryCache& cache,
+                                           std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept {
+    (void)cache;
+    return query(Aabb::around_point(centre, radius_m), out_ids, out_count);
   }
 
  protected:

@@ -53,6 +53,7 @@
 #include "trainer/model/geometry.hpp"
 #include "trainer/model/modal_model.hpp"
 #include "trainer/model/proxy.hpp"  // TriangleMeshView
+#include "trainer/model/triangle_bvh.hpp"  // QueryCache
 
 namespace trainer::model {
 
@@ -73,6 +74,10 @@ struct ParticleContactSettings {
   float surface_offset_m = 0.0F;       // ≥ 0: half the shell thickness
   float max_force_n = 0.0F;            // > 0: clamp per contact
   ContactSide side = ContactSide::inner;
+  // Particles 0 .. cached_particles − 1 keep their broad-phase candidates from compute to
+  // compute (TriangleBroadPhase::query_sphere_cached: a particle moves little per cycle); one
+  // QueryCache each from the arena. 0: every query from scratch.
+  std::uint32_t cached_particles = 0;
 };
 
 // Force on one mesh node (N, model frame); each node appears once per compute().
@@ -170,6 +175,7 @@ class ParticleSurfaceContact {
   std::span<NodeForce> node_forces_;        // 3 · max_contacts entries at most
   std::span<std::uint32_t> node_slot_;      // per node: index in node_forces_, or kNoSlot
   std::span<std::uint32_t> candidate_ids_;  // grid query output
+  std::span<QueryCache> caches_;            // settings.cached_particles
   std::span<Candidate> candidates_;         // within reach, for the current particle
   std::size_t particle_count_ = 0;
   std::size_t node_force_count_ = 0;

@@ -16,12 +16,16 @@
 // compiler targets it, the same arithmetic lane by lane otherwise.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+
+#include <Eigen/Geometry>
 
 #include "trainer/model/broad_phase.hpp"
 
@@ -152,5 +156,87 @@ class SegmentBoxTest {
   float around_max_[3];
   float margin_;
 };
+
+// A lower bound of the Euclidean distance between the segment p0–p1 and the triangle abc
+// (float inputs, converted exactly), computed in double: the distance between two convex sets
+// is reached at an end of the segment, on an edge of the triangle, or is 0 where the segment
+// crosses it, so it is the least of the three segment–edge distances, each end's distance to
+// the triangle's plane when its foot lies inside (barycentric weights ≥ −1e-9: a foot a
+// hair outside still gives a plane distance, which never exceeds the true one), and 0 for a
+// crossing (idem); a triangle whose normal is 0 in double is its edges. Less 1e-7 m, far more
+// than double rounding on metre-scale input. TriangleBvh's cached segment queries
+// (docs/collision.md "Cached queries") keep a triangle while this bound, taken once
+// per cache against the hierarchy's reference positions, allows it within reach.
+namespace segment_bound_detail {
+using Vec3d = Eigen::Vector3d;
+inline double segment_segment_distance(const Vec3d& p1, const Vec3d& q1, const Vec3d& p2, const Vec3d& q2) noexcept {
+  // Ericson, Real-Time Collision Detection 5.1.9: each parameter optimal given the other.
+  const Vec3d d1 = q1 - p1;
+  const Vec3d d2 = q2 - p2;
+  const Vec3d r = p1 - p2;
+  const double a = d1.squaredNorm();
+  const double e = d2.squaredNorm();
+  const double f = d2.dot(r);
+  double s = 0.0;
+  double t = 0.0;
+  if (a <= 0.0 && e <= 0.0) return r.norm();
+  if (a <= 0.0) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const double c = d1.dot(r);
+    if (e <= 0.0) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const double b = d1.dot(d2);
+      const double denom = a * e - b * b;
+      s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1.0) {
+        t = 1.0;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  return (p1 + s * d1 - (p2 + t * d2)).norm();
+}
+// x's barycentric weights in the triangle (normal n, n·n = n2 > 0) all ≥ −1e-9.
+inline bool inside_triangle(const Vec3d& x, const Vec3d (&v)[3], const Vec3d& n, double n2) noexcept {
+  for (int k = 0; k < 3; ++k) {
+    const Vec3d& from = v[k];
+    const Vec3d& to = v[(k + 1) % 3];
+    if (n.dot((to - from).cross(x - from)) < -1e-9 * n2) return false;
+  }
+  return true;
+}
+}  // namespace segment_bound_detail
+
+inline double segment_triangle_distance_below(const Vec3& p0f, const Vec3& p1f, const Vec3& af, const Vec3& bf,
+                                              const Vec3& cf) noexcept {
+  using segment_bound_detail::Vec3d;
+  const Vec3d p0 = p0f.cast<double>();
+  const Vec3d p1 = p1f.cast<double>();
+  const Vec3d v[3] = {af.cast<double>(), bf.cast<double>(), cf.cast<double>()};
+  double distance = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    distance = std::min(distance, segment_bound_detail::segment_segment_distance(p0, p1, v[k], v[(k + 1) % 3]));
+  }
+  const Vec3d n = (v[1] - v[0]).cross(v[2] - v[0]);
+  const double n2 = n.squaredNorm();
+  if (n2 > 0.0) {
+    const double s0 = n.dot(p0 - v[0]);
+    const double s1 = n.dot(p1 - v[0]);
+    const double length = std::sqrt(n2);
+    if (segment_bound_detail::inside_triangle(p0 - (s0 / n2) * n, v, n, n2)) distance = std::min(distance, std::abs(s0) / length);
+    if (segment_bound_detail::inside_triangle(p1 - (s1 / n2) * n, v, n, n2)) distance = std::min(distance, std::abs(s1) / length);
+    if ((s0 <= 0.0 && s1 >= 0.0) || (s0 >= 0.0 && s1 <= 0.0)) {
+      const double t = s0 != s1 ? s0 / (s0 - s1) : 0.0;
+      if (segment_bound_detail::inside_triangle(p0 + t * (p1 - p0), v, n, n2)) distance = 0.0;
+    }
+  }
+  return std::max(0.0, distance - 1e-7);
+}
 
 }  // namespace trainer::model

@@ -75,6 +75,7 @@
 #include "trainer/model/geometry.hpp"
 #include "trainer/model/particle_contact.hpp"  // NodeForce
 #include "trainer/model/proxy.hpp"             // TriangleMeshView
+#include "trainer/model/triangle_bvh.hpp"      // QueryCache
 
 namespace trainer::model {
 
@@ -194,6 +195,7 @@ class SegmentSurfaceContact {
 
   SegmentContactSettings settings_{};
   std::span<std::uint32_t> candidate_ids_;  // grid query output
+  std::array<QueryCache, kMaxSegments> caches_{};  // per segment: its repeated query's candidates
   std::span<Candidate> candidates_;         // within reach, for the current segment
   std::array<std::span<TriangleSphere>, 2> spheres_{};  // the previous segment's, this one's
   unsigned sphere_buffer_ = 0;               // spheres_[sphere_buffer_]: the previous segment's

@@ -37,11 +37,51 @@
 
 namespace trainer::model {
 
+// Candidates of one repeated query (a tool capsule's segment or a catheter particle's sphere,
+// cycle after cycle), kept by TriangleBvh::query_segment_cached_within /
+// query_sphere_cached_within: the triangles whose stored box passed the query's own test with
+// extra_margin_m more when they were collected, their boxes in packs of 4, and per triangle a
+// lower bound of its reference triangle's distance from the query's segment (a sphere: its
+// centre), computed when first needed. Valid while the hierarchy has not refitted and the query
+// has moved less than the extra margin (docs/collision.md "Cached queries"). Storage from an
+// arena at create(); the owner keeps one per repeated query; one thread.
+struct QueryCache {
+  static constexpr std::size_t kDefaultCapacity = 128;
+  static constexpr float kDefaultExtraMarginM = 1e-3F;
+
+  // Refuses a capacity of 0 or above 2^20, an extra margin not finite or ≤ 0, an arena too small.
+  static core::Expected<QueryCache> create(core::Arena& arena, std::size_t capacity = kDefaultCapacity,
+                                                  float extra_margin_m = kDefaultExtraMarginM);
+  void invalidate() noexcept { valid = false; }
+
+  std::span<std::uint32_t> ids;   // increasing
+  std::span<AabbPack4> packs;     // ids' stored boxes, 4 per pack (unused lanes never pass)
+  std::span<double> below_m;      // per id: lower bound of dist(cached segment, reference triangle); < 0 not yet
+  std::size_t count = 0;
+  float extra_margin_m = kDefaultExtraMarginM;
+  // What the candidates were collected for.
+  const void* hierarchy = nullptr;
+  std::uint64_t refit = 0;
+  float slack_m = 0.0F;
+  float test_margin_m = 0.0F;  // segment: the slab test's margin they were collected with
+  Aabb box;                    // sphere: the box they were collected with
+  Vec3 p0 = Vec3::Zero();      // the segment (a sphere: p0 = p1 = its centre)
+  Vec3 p1 = Vec3::Zero();
+  float scale_m = 0.0F;        // the largest coordinate magnitude of the cached query and the root box
+  bool sphere = false;
+  bool valid = false;
+  // Since create(): queries answered from the kept candidates, and collections.
+  std::uint64_t reuses = 0;
+  std::uint64_t collections = 0;
+};
+
 class TriangleBvh final : public TriangleBroadPhase {
  public:
   // Deepest hierarchy create() accepts (a median split of 2^32 triangles in leaves of 1 is 33
   // deep): the query's traversal stack is this long.
   static constexpr std::size_t kMaxDepth = 40;
+  // Reference-triangle bounds a cached query computes per call at most (the others wait).
+  static constexpr int kBoundsPerQuery = 3;
 
   // Setup path. `positions_m`: 3n floats (x y z per vertex), `triangles`: 3m vertex indices.
   // Refuses (naming what and the value): no triangle, a length not a multiple of 3, an index
@@ -81,6 +121,40 @@ class TriangleBvh final : public TriangleBroadPhase {
   // still every one within margin_m. A deviation_m outside [0, slack] is ignored (the slack).
   core::Status query_segment_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
                                     std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  // query_segment_within() answered from `cache` while it holds a superset (the hierarchy not
+  // refitted since it was filled, the segment within its extra margin of the segment it was
+  // filled for, per coordinate, less a rounding guard); otherwise the cache is filled again
+  // first (a traversal with the extra margin). The kept candidates are tested with the
+  // query's own box test (so every triangle query_segment_within returns passes it) and then
+  // against a bound on the triangle itself: each vertex is within D (the stated deviation, or
+  // the slack) of the reference positions per coordinate, so a triangle whose reference
+  // triangle is farther than margin_m + √3 D (+ how far the segment moved since the fill, + the
+  // narrow phase's float rounding: 1 µm + 1e-4 of the coordinates) from the segment cannot be
+  // within margin_m (at most kBoundsPerQuery bounds computed per call, none in a filling call;
+  // a triangle without one is kept). Returns, in increasing id order, every triangle within margin_m
+  // of the segment and a subset of query_segment_within's list. A cache overflow (more than
+  // its capacity) answers by query_segment_within and leaves the cache empty.
+  core::Status query_segment_cached_within(const Vec3& p0, const Vec3& p1, float margin_m, float deviation_m,
+                                           QueryCache& cache, std::span<std::uint32_t> out_ids,
+                                           std::size_t& out_count) noexcept;
+  // The same with the slack as the deviation (no statement).
+  core::Status query_segment_cached(const Vec3& p0, const Vec3& p1, float margin_m, QueryCache& cache,
+                                    std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept override {
+    return query_segment_cached_within(p0, p1, margin_m, -1.0F, cache, out_ids, out_count);
+  }
+
+  // query_within(Aabb::around_point(centre, radius_m), deviation_m) answered from `cache` in
+  // the same way (reused while the query's box, shrunk as query_within shrinks it, lies inside
+  // the box the cache was filled with; the triangle bound is the point's distance): in
+  // increasing id order, every triangle within radius_m of the centre and a subset of
+  // query_within's list. A catheter particle's repeated wall query.
+  core::Status query_sphere_cached_within(const Vec3& centre, float radius_m, float deviation_m, QueryCache& cache,
+                                          std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  core::Status query_sphere_cached(const Vec3& centre, float radius_m, QueryCache& cache,
+                                   std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept override {
+    return query_sphere_cached_within(centre, radius_m, -1.0F, cache, out_ids, out_count);
+  }
+
   // query() with the same statement: every triangle whose current AABB overlaps `box` is
   // returned (a subset of query()'s list).
   core::Status query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,
@@ -130,6 +204,18 @@ class TriangleBvh final : public TriangleBroadPhase {
   // 4 node or triangle boxes that may hold an answer.
   template <class Accept4>
   core::Status collect(Accept4&& accept4, std::span<std::uint32_t> out_ids, std::size_t& out_count) noexcept;
+  // The cached queries' parts: whether `cache` was filled by this hierarchy in its current
+  // state for this kind of query (counts a reuse; else marks it invalid), the coordinates'
+  // scale, how far the segment's ends moved per coordinate, the fill, the answer.
+  bool cache_current(QueryCache& cache, bool sphere) const noexcept;
+  static double query_scale(const Vec3& p0, const Vec3& p1, const QueryCache& cache) noexcept;
+  static double moved_inf(const Vec3& p0, const Vec3& p1, const QueryCache& cache) noexcept;
+  template <class Accept4>
+  bool fill_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p0, const Vec3& p1) noexcept;
+  template <class Accept4>
+  core::Status answer_from_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p0, const Vec3& p1, float reach_m,
+                                 float deviation_m, int budget, std::span<std::uint32_t> out_ids,
+                                 std::size_t& out_count) noexcept;
 
   std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
   std::span<Node> nodes_;

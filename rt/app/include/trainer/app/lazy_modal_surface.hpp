@@ -69,6 +69,12 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
 
   // The vertices of `triangle` computed for this step (each vertex once).
   void ensure_triangle(std::uint32_t triangle) noexcept;
+  // For a caller that queries the hierarchy itself (the tools' cached segment queries,
+  // stages/modal_targets.cpp): this step's bound on every vertex's distance from the
+  // hierarchy's reference, per coordinate (< 0 unknown: the slack), as query_segment() states
+  // it, and the vertices of the triangles it got made this step's, as query_segment() does.
+  float stated_deviation_m() const noexcept { return within_m_; }
+  void make_current(std::span<const std::uint32_t> ids) noexcept { ensure_candidates(ids); }
 
   core::Status query(const model::Aabb& box, std::span<std::uint32_t> out_ids,
                      std::size_t& out_count) noexcept override;
