@@ -264,6 +264,60 @@ float LazyModalSurface::cluster_deviation(std::size_t cluster) const noexcept {
   return deviation;
 }
 
+void LazyModalSurface::compute_all_fused() noexcept {
+  // Every node in order, the surface nodes one run (node surface_first_node_ + k is surface
+  // node k; the duct: nodes 16..335): Φ q by the model's kernel, then per coordinate the static
+  // correction Σ_l R F summed from zero load by load, axis by axis (in registers, four
+  // coordinates at a time), + that, + rest: the float operations of the per-node path
+  // (finish_node) and of the whole-surface axpys, in the same order, in one pass over the array
+  // instead of one per load and axis. Off the surface: + rest.
+  modal_->shape_rows(nullptr, node_count_, modes_.data(), surface_->deformed.data());
+  const std::size_t size = 3 * static_cast<std::size_t>(node_count_);
+  float* out = surface_->deformed.data();
+  const float* rest = rest_.data();
+  std::size_t terms = 0;
+  const bool correction = static_correction_ && load_count_ > 0;
+  if (correction) {
+    const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+    for (std::size_t k = 0; k < load_count_; ++k) {
+      const Load& load = loads_[k];
+      if (load.surface_index < 0) continue;
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        load_rows_[terms] = residual_.data() + (3 * static_cast<std::size_t>(load.surface_index) + axis) * stride;
+        load_forces_[terms] = load.force_n[axis];
+        ++terms;
+      }
+    }
+  }
+  const auto add_rest = [&](std::size_t from, std::size_t to) {
+    if (to <= from) return;
+    Eigen::Map<Eigen::ArrayXf>(out + from, static_cast<Eigen::Index>(to - from)) +=
+        Eigen::Map<const Eigen::ArrayXf>(rest + from, static_cast<Eigen::Index>(to - from));
+  };
+  if (!correction) {
+    add_rest(0, size);
+    return;
+  }
+  const std::size_t first = 3 * static_cast<std::size_t>(surface_first_node_);
+  const std::size_t last = first + 3 * static_cast<std::size_t>(surface_count_);
+  add_rest(0, first);
+  std::size_t i = first;
+  for (; i + 4 <= last; i += 4) {
+    Eigen::Array4f sum = Eigen::Array4f::Zero();
+    for (std::size_t t = 0; t < terms; ++t) {
+      sum = sum + load_forces_[t] * Eigen::Map<const Eigen::Array4f>(load_rows_[t] + (i - first));
+    }
+    Eigen::Map<Eigen::Array4f> value(out + i);
+    value = (value + sum) + Eigen::Map<const Eigen::Array4f>(rest + i);
+  }
+  for (; i < last; ++i) {
+    float sum = 0.0F;
+    for (std::size_t t = 0; t < terms; ++t) sum = sum + load_forces_[t] * load_rows_[t][i - first];
+    out[i] = (out[i] + sum) + rest[i];
+  }
+  add_rest(last, size);
+}
+
 void LazyModalSurface::compute_remaining() noexcept {
   // Every vertex not computed yet this step (a check may have computed some).
   std::size_t pending = 0;
@@ -271,6 +325,10 @@ void LazyModalSurface::compute_remaining() noexcept {
     if (stamp_[node] == step_) continue;
     stamp_[node] = step_;
     pending_[pending++] = node;
+  }
+  if (pending == node_count_ && (surface_run_ || !static_correction_)) {
+    compute_all_fused();
+    return;
   }
   // With most of the surface to do, Σ_l R_{k,l} F_l for every surface node at once
   // (element by element in the same order as finish_node's per-node sum, so the values are
@@ -295,6 +353,47 @@ void LazyModalSurface::compute_remaining() noexcept {
                      surface_->deformed.data());
   for (std::size_t k = 0; k < pending; ++k) finish_node(pending_[k]);
   full_residual_valid_ = false;
+}
+
+bool LazyModalSurface::all_cluster_deviations(float slack_m) noexcept {
+  const auto size = static_cast<Eigen::Index>(3 * static_cast<std::size_t>(node_count_));
+  Eigen::Map<Eigen::ArrayXf> deviation(coordinate_deviation_.data(), size);
+  deviation = (Eigen::Map<const Eigen::ArrayXf>(surface_->deformed.data(), size) -
+               Eigen::Map<const Eigen::ArrayXf>(surface_->grid->reference_positions().data(), size))
+                  .abs();
+  if (!deviation.allFinite()) {  // the full path: the refit refuses it
+    std::fill(checked_deviation_.begin(), checked_deviation_.begin() + static_cast<std::ptrdiff_t>(cluster_count()),
+              std::numeric_limits<float>::quiet_NaN());
+    return false;
+  }
+  bool within = true;
+  for (std::size_t c = 0; c < cluster_count(); ++c) {
+    float worst = 0.0F;
+    for (std::uint32_t k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k) {
+      const float* d = coordinate_deviation_.data() + 3 * static_cast<std::size_t>(cluster_nodes_[k]);
+      worst = std::max(worst, std::max(d[0], std::max(d[1], d[2])));
+    }
+    checked_deviation_[c] = worst;
+    within = within && worst <= slack_m;
+  }
+  return within;
+}
+
+void LazyModalSurface::rebase_all() noexcept {
+  for (Epoch& epoch : epochs_) epoch.users = 0;
+  latest_epoch_ = 0;
+  Epoch& epoch = epochs_[0];
+  std::copy(modes_.begin(), modes_.end(), epoch.modes.begin());
+  std::copy(loads_.begin(), loads_.begin() + static_cast<std::ptrdiff_t>(load_count_), epoch.loads.begin());
+  epoch.load_count = load_count_;
+  epoch.magnitude = magnitude_;
+  epoch.delta_step = 0;
+  epoch.users = static_cast<std::uint32_t>(cluster_count());
+  for (std::size_t c = 0; c < cluster_count(); ++c) {
+    cluster_epoch_[c] = 0;
+    used_m_[c] = static_cast<double>(checked_deviation_[c]);
+  }
+  update_max_used();
 }
 
 bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& modal) noexcept {
@@ -329,53 +428,86 @@ bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& m
       epoch.bound_m = epoch_bound(epoch);
       all_within = all_within && epoch.bound_m <= budget_m_;
     }
+    // The last step computed every vertex (1 kHz held contact) and the common bound is beyond
+    // the budget: most clusters would be checked again, so all of them are computed without
+    // bounding them one by one first.
+    bool all = !all_within && all_last_ && kAllAfterAll;
     std::size_t checked = 0;
-    for (std::uint32_t e = 0; e < epochs_.size(); ++e) {
-      // A state whose common bound is beyond the budget: its clusters one by one (in one pass).
-      if (!(epochs_[e].bound_m <= budget_m_) && epochs_[e].users > 0) epoch_cluster_pass(e);
-    }
-    for (std::size_t c = 0; c < clusters; ++c) {
-      const Epoch& epoch = epochs_[cluster_epoch_[c]];
-      if (epoch.bound_m <= budget_m_) bound_[c] = epoch.bound_m;
-      if (!(bound_[c] <= budget_m_)) {  // NaN too
-        checked_[checked++] = static_cast<std::uint32_t>(c);
+    if (!all) {
+      for (std::uint32_t e = 0; e < epochs_.size(); ++e) {
+        // A state whose common bound is beyond the budget: its clusters one by one (in one pass).
+        if (!(epochs_[e].bound_m <= budget_m_) && epochs_[e].users > 0) epoch_cluster_pass(e);
       }
-    }
-    // The clusters beyond the budget: their vertices exactly, compared as the refit compares
-    // (the full path below does not compute them again).
-    std::size_t checked_nodes = 0;
-    for (std::size_t k = 0; k < checked; ++k) checked_nodes += cluster_start_[checked_[k] + 1] - cluster_start_[checked_[k]];
-    // Most of the surface to check: all of it the full path's way (contiguous rows, the
-    // static correction over the whole surface at once), then the same checks.
-    if (3 * checked_nodes > node_count_) compute_remaining();
-    bool beyond = false;
-    for (std::size_t k = 0; k < checked && !beyond; ++k) {
-      const std::size_t c = checked_[k];
-      compute_nodes(cluster_nodes_.data() + cluster_start_[c], cluster_start_[c + 1] - cluster_start_[c]);
-      checked_deviation_[k] = cluster_deviation(c);
-      beyond = !(checked_deviation_[k] <= surface.grid_slack_m);
-    }
-    if (!beyond) {
-      if (checked > 0) {
-        const std::uint32_t epoch = take_snapshot_epoch();
-        for (std::size_t k = 0; k < checked; ++k) anchor(checked_[k], epoch, checked_deviation_[k]);
-        update_max_used();
-        ++checked_steps_;
-      }
-      // Every vertex is within this of the hierarchy's reference positions (per coordinate):
-      // each cluster's bound, or a checked cluster's exact deviation; rounded up to float.
-      // TriangleBvh::query_within / query_segment_within take the boxes as grown by it.
-      double within = 0.0;
       for (std::size_t c = 0; c < clusters; ++c) {
-        if (bound_[c] <= budget_m_) within = std::max(within, bound_[c]);
+        const Epoch& epoch = epochs_[cluster_epoch_[c]];
+        if (epoch.bound_m <= budget_m_) bound_[c] = epoch.bound_m;
+        if (!(bound_[c] <= budget_m_)) {  // NaN too
+          checked_[checked++] = static_cast<std::uint32_t>(c);
+        }
       }
-      for (std::size_t k = 0; k < checked; ++k) within = std::max(within, static_cast<double>(checked_deviation_[k]));
-      within_m_ = std::nextafter(static_cast<float>(within), std::numeric_limits<float>::infinity());
-      ++lazy_steps_;
-      surface.surface_ready = true;
-      return true;
+      // The clusters beyond the budget: their vertices exactly, compared as the refit compares
+      // (the full path below does not compute them again).
+      std::size_t checked_nodes = 0;
+      for (std::size_t k = 0; k < checked; ++k) checked_nodes += cluster_start_[checked_[k] + 1] - cluster_start_[checked_[k]];
+      // Most of the surface to check: all of it.
+      all = 3 * checked_nodes > node_count_;
+    }
+    all_last_ = all;
+    if (all) {
+      // Every vertex the full path's way (contiguous rows, the static correction over the whole
+      // surface at once), every cluster compared exactly; none beyond the slack → no refit (the
+      // full path's refit would skip too) and this state is every cluster's reference with its
+      // exact deviation, as after a full step that did not refit.
+      compute_remaining();
+      const bool none_beyond = all_cluster_deviations(surface.grid_slack_m);
+      // This step's bound of each cluster: its exact deviation (rounded up: the float
+      // difference may have rounded down); NaN when not finite.
+      float within = 0.0F;
+      for (std::size_t c = 0; c < clusters; ++c) {
+        bound_[c] = static_cast<double>(std::nextafter(checked_deviation_[c], std::numeric_limits<float>::infinity()));
+        within = std::max(within, checked_deviation_[c]);
+      }
+      if (none_beyond) {
+        rebase_all();
+        within_m_ = std::nextafter(within, std::numeric_limits<float>::infinity());
+        ++checked_steps_;
+        ++rebased_steps_;
+        ++lazy_steps_;
+        surface.surface_ready = true;
+        return true;
+      }
+      all_last_ = false;
+    } else {
+      bool beyond = false;
+      for (std::size_t k = 0; k < checked && !beyond; ++k) {
+        const std::size_t c = checked_[k];
+        compute_nodes(cluster_nodes_.data() + cluster_start_[c], cluster_start_[c + 1] - cluster_start_[c]);
+        checked_deviation_[k] = cluster_deviation(c);
+        beyond = !(checked_deviation_[k] <= surface.grid_slack_m);
+      }
+      if (!beyond) {
+        if (checked > 0) {
+          const std::uint32_t epoch = take_snapshot_epoch();
+          for (std::size_t k = 0; k < checked; ++k) anchor(checked_[k], epoch, checked_deviation_[k]);
+          update_max_used();
+          ++checked_steps_;
+        }
+        // Every vertex is within this of the hierarchy's reference positions (per coordinate):
+        // each cluster's bound, or a checked cluster's exact deviation; rounded up to float.
+        // TriangleBvh::query_within / query_segment_within take the boxes as grown by it.
+        double within = 0.0;
+        for (std::size_t c = 0; c < clusters; ++c) {
+          if (bound_[c] <= budget_m_) within = std::max(within, bound_[c]);
+        }
+        for (std::size_t k = 0; k < checked; ++k) within = std::max(within, static_cast<double>(checked_deviation_[k]));
+        within_m_ = std::nextafter(static_cast<float>(within), std::numeric_limits<float>::infinity());
+        ++lazy_steps_;
+        surface.surface_ready = true;
+        return true;
+      }
     }
   }
+  all_last_ = false;
   // The full path: every vertex, then the refit (which does the work only beyond the slack).
   ++full_steps_;
   within_m_ = -1.0F;  // unknown until the refit: the slack

@@ -88,6 +88,11 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
     index[data.surface_nodes[k]] = static_cast<std::int32_t>(k);
   }
   lazy.surface_index_ = index;
+  lazy.surface_first_node_ = s > 0 ? data.surface_nodes[0] : 0;
+  lazy.surface_run_ = s > 0;
+  for (std::size_t k = 0; k < s && lazy.surface_run_; ++k) {
+    lazy.surface_run_ = data.surface_nodes[k] == lazy.surface_first_node_ + k;
+  }
 
   // Clusters.
   std::vector<std::uint32_t> order(n);
@@ -119,6 +124,14 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
                     .is_ok() &&
                 lazy_surface_carve(arena, 3 * s, "lazy surface: residual scratch", lazy.full_residual_).is_ok() &&
                 lazy_surface_carve(arena, n, "lazy surface: stamps", lazy.stamp_).is_ok() &&
+                lazy_surface_carve(arena, 3 * n, "lazy surface: coordinate deviations", lazy.coordinate_deviation_)
+                    .is_ok() &&
+                lazy_surface_carve(arena, 3 * model::ModalModel::kMaxLoadedNodes, "lazy surface: load rows",
+                                   lazy.load_rows_)
+                    .is_ok() &&
+                lazy_surface_carve(arena, 3 * model::ModalModel::kMaxLoadedNodes, "lazy surface: load forces",
+                                   lazy.load_forces_)
+                    .is_ok() &&
                 lazy_surface_carve(arena, n, "lazy surface: pending", lazy.pending_).is_ok();
   for (std::size_t e = 0; carved && e < kEpochs; ++e) {
     Epoch& epoch = lazy.epochs_[e];

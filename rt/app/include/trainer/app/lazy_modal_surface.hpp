@@ -82,12 +82,18 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // were checked at (the oldest's clusters move to the newest). Measured on the cbd duct: 2
   // (a ring of one) costs less per step than 4 and checks about as many clusters.
   static constexpr std::uint32_t kEpochs = 2;
+  // After a step that computed every vertex, the next one whose common bound is beyond the
+  // budget computes every vertex again without the per-cluster pass.
+  static constexpr bool kAllAfterAll = true;
 
   // Since create(): steps taken lazily (some clusters' vertices maybe checked, no refit), of
   // them the ones that checked clusters, full reconstructions, vertices computed lazily.
   std::uint64_t lazy_steps() const noexcept { return lazy_steps_; }
   std::uint64_t checked_steps() const noexcept { return checked_steps_; }
   std::uint64_t full_steps() const noexcept { return full_steps_; }
+  // Of the checked steps, those that computed every vertex and took this state as every
+  // cluster's reference (each cluster's exact deviation; no refit): the 1 kHz held contact.
+  std::uint64_t rebased_steps() const noexcept { return rebased_steps_; }
   std::uint64_t vertices_computed() const noexcept { return vertices_computed_; }
   std::size_t cluster_count() const noexcept { return cluster_start_.size() - 1; }
   // The clusters' nodes: cluster c is cluster_nodes()[cluster_start(c) .. cluster_start(c+1)).
@@ -145,6 +151,14 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   void compute_pending(std::size_t pending) noexcept;
   void finish_node(std::uint32_t node) noexcept;
   void compute_remaining() noexcept;  // every node not yet current this step
+  void compute_all_fused() noexcept;  // every node, one pass (see compute_remaining)
+  // After compute_remaining: every cluster's deviation from the hierarchy's reference into
+  // checked_deviation_[cluster] (as refit compares); false when one is beyond the slack or
+  // not finite.
+  bool all_cluster_deviations(float slack_m) noexcept;
+  // This state (every vertex computed, none beyond the slack) becomes every cluster's
+  // reference (epoch 0) with its exact deviation: what finish_full does when the refit skips.
+  void rebase_all() noexcept;
   void ensure_candidates(std::span<const std::uint32_t> ids) noexcept;
   void prepare_epoch(Epoch& epoch) noexcept;
   // The bound of every cluster of `epoch` into bound_ (in packets over the clusters):
@@ -214,6 +228,14 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
 
   std::span<float> full_residual_;  // the full path's Σ_l R_kl F_l over the surface, 3s
   bool full_residual_valid_ = false;
+  // The surface nodes are one run of nodes in order: node surface_first_node_ + k is surface
+  // node k, every other node off the surface (the duct: nodes 16..335).
+  bool surface_run_ = false;
+  std::uint32_t surface_first_node_ = 0;
+  bool all_last_ = false;          // the last step computed every vertex (and did not refit)
+  std::span<float> coordinate_deviation_;
+  std::span<const float*> load_rows_;  // scratch, 3 per load: compute_all_fused's R rows
+  std::span<float> load_forces_;       // and their force components  // scratch, 3n: |now − the hierarchy's reference|
   std::span<std::uint64_t> stamp_;  // per vertex: the step it was computed for
   std::span<std::uint32_t> pending_;  // scratch: nodes to compute
   std::uint64_t step_ = 0;
@@ -221,6 +243,7 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::uint64_t lazy_steps_ = 0;
   std::uint64_t checked_steps_ = 0;
   std::uint64_t full_steps_ = 0;
+  std::uint64_t rebased_steps_ = 0;
   std::uint64_t vertices_computed_ = 0;
 };
 
