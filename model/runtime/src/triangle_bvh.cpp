@@ -372,7 +372,9 @@ core::Status TriangleBvh::refit(std::span<const float> positions_m, float slack_
   // vectorized, ~4 coordinates per instruction on SSE2).
   const Eigen::Map<const Eigen::ArrayXf> now(positions_m.data(), static_cast<Eigen::Index>(positions_m.size()));
   const Eigen::Map<const Eigen::ArrayXf> before(reference_.data(), static_cast<Eigen::Index>(reference_.size()));
-  if (!now.allFinite()) {
+  // x − x is 0 for a finite x and NaN otherwise: the sum is 0 exactly when every coordinate is
+  // finite (vectorized; allFinite() is a scalar loop, 1,008 compares on the duct).
+  if (!((now - now).sum() == 0.0F)) {
     ready_ = false;
     return {core::StatusCode::numeric_error, "triangle bvh: non-finite vertex"};
   }

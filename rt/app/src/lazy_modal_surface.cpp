@@ -361,7 +361,10 @@ bool LazyModalSurface::all_cluster_deviations(float slack_m) noexcept {
   deviation = (Eigen::Map<const Eigen::ArrayXf>(surface_->deformed.data(), size) -
                Eigen::Map<const Eigen::ArrayXf>(surface_->grid->reference_positions().data(), size))
                   .abs();
-  if (!deviation.allFinite()) {  // the full path: the refit refuses it
+  // Not finite (a NaN or infinite coordinate, or deviations so large their sum overflows): the
+  // full path, whose refit refuses it or refits. (allFinite() is a scalar loop; the sum is
+  // vectorized.)
+  if (!std::isfinite(deviation.sum())) {
     std::fill(checked_deviation_.begin(), checked_deviation_.begin() + static_cast<std::ptrdiff_t>(cluster_count()),
               std::numeric_limits<float>::quiet_NaN());
     return false;
