@@ -115,6 +115,7 @@ void LazyModalSurface::prepare_epoch(Epoch& epoch) noexcept {
     const double d = static_cast<double>(modes_[j]) - static_cast<double>(epoch.modes[j]);
     epoch.abs_dq[j] = std::abs(d);
     epoch.abs_dq_f[j] = float_up(std::abs(d));
+    epoch.dq_f[j] = static_cast<float>(d);
     squared += d * d;
   }
   epoch.dq_norm = std::sqrt(squared);
@@ -187,11 +188,40 @@ void LazyModalSurface::epoch_cluster_pass(std::uint32_t index) noexcept {
     for (std::size_t k = 0; k < 8 && base + k < clusters; ++k) {
       const std::size_t c = base + k;
       if (cluster_epoch_[c] != index) continue;
-      const double modes = std::min(row_norm_max_[c] * epoch.dq_norm, static_cast<double>(modes_sum[k]) * float_sum);
-      bound_[c] = finite ? used_m_[c] + modes + static_cast<double>(loads_sum[k]) * float_sum + rounding
-                         : std::numeric_limits<double>::quiet_NaN();
+      mode_sum_[c] = static_cast<double>(modes_sum[k]) * float_sum;
+      load_part_[c] = static_cast<double>(loads_sum[k]) * float_sum;
+      const double modes = std::min(row_norm_max_[c] * epoch.dq_norm, mode_sum_[c]);
+      bound_[c] = finite ? used_m_[c] + modes + load_part_[c] + rounding : std::numeric_limits<double>::quiet_NaN();
     }
   }
+}
+
+double LazyModalSurface::refined_bound(std::size_t cluster) const noexcept {
+  const Epoch& epoch = epochs_[cluster_epoch_[cluster]];
+  if (!std::isfinite(epoch.dq_norm)) return std::numeric_limits<double>::quiet_NaN();
+  // A row of the cluster: Φ_row Δq = Φ̄ Δq + (Φ_row − Φ̄) Δq. Φ̄ Δq in float with Δq rounded
+  // to float: within 2^-24 Σ|Φ̄_j||Δq_j| of Φ̄ Δq for the rounding of Δq, and γ_{r+1} of the
+  // same sum for the dot's own roundings; |Φ̄_j| ≤ max_row |Φ_row,j|, so mode_sum_ bounds
+  // that sum (it is a covered float sum of the same terms, each rounded up).
+  const auto active = static_cast<Eigen::Index>(active_modes_);
+  const Eigen::Map<const Eigen::VectorXf> dq(epoch.dq_f.data(), active);
+  const float* centre = centre_rows_.data() + 3 * cluster * active_modes_;
+  double largest = 0.0;
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const float dot = Eigen::Map<const Eigen::VectorXf>(centre + axis * active_modes_, active).dot(dq);
+    largest = std::max(largest, std::abs(static_cast<double>(dot)));
+  }
+  const double dot_rounding = static_cast<double>(2 * active_modes_ + 6) * 0x1p-24 * mode_sum_[cluster];
+  // The spread: Σ_j max|Φ_row,j − Φ̄_j| |Δq_j| in float (every factor rounded up, the sum's
+  // rounding covered as in the pass), or the norms' product.
+  float spread_sum = 0.0F;
+  for (std::size_t j = 0; j < active_modes_; ++j) {
+    spread_sum += spread_max_t_[j * cluster_stride_ + cluster] * epoch.abs_dq_f[j];
+  }
+  const double float_sum = 1.0 + static_cast<double>(active_modes_ + 2) * 0x1p-23;
+  const double spread = std::min(spread_norm_max_[cluster] * epoch.dq_norm * (1.0 + 1e-12),
+                                 static_cast<double>(spread_sum) * float_sum);
+  return used_m_[cluster] + largest + dot_rounding + spread + load_part_[cluster] + rounding_m(epoch);
 }
 
 double LazyModalSurface::rounding_m(const Epoch& epoch) const noexcept {
@@ -445,6 +475,13 @@ bool LazyModalSurface::begin(ContactSurface& surface, const model::ModalModel& m
         const Epoch& epoch = epochs_[cluster_epoch_[c]];
         if (epoch.bound_m <= budget_m_) bound_[c] = epoch.bound_m;
         if (!(bound_[c] <= budget_m_)) {  // NaN too
+          // Beyond the pass's bound: the tighter bound about the cluster's mean rows first.
+          const double refined = refined_bound(c);
+          if (refined <= budget_m_) {
+            bound_[c] = std::min(bound_[c], refined);
+            ++refined_clusters_;
+            continue;
+          }
           checked_[checked++] = static_cast<std::uint32_t>(c);
         }
       }

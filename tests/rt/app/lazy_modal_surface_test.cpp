@@ -235,9 +235,10 @@ TEST(LazyModalSurface, ClusterBoundsAreConservativeUnderRandomLoads) {
   EXPECT_GT(rig.lazy->checked_steps(), 10U);
   EXPECT_GT(rig.full_steps, 10U);
   RecordProperty("bound_tightness", std::to_string(tightest));
-  std::printf("lazy %llu (checked %llu) full %llu (refit not needed %llu), largest motion / bound %.3f\n",
+  std::printf("lazy %llu (checked %llu, refined clusters %llu) full %llu (refit not needed %llu), largest motion / bound %.3f\n",
               static_cast<unsigned long long>(rig.lazy_steps),
               static_cast<unsigned long long>(rig.lazy->checked_steps()),
+              static_cast<unsigned long long>(rig.lazy->refined_clusters()),
               static_cast<unsigned long long>(rig.full_steps),
               static_cast<unsigned long long>(rig.needless_full_steps), tightest);
 }

@@ -94,6 +94,8 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // Of the checked steps, those that computed every vertex and took this state as every
   // cluster's reference (each cluster's exact deviation; no refit): the 1 kHz held contact.
   std::uint64_t rebased_steps() const noexcept { return rebased_steps_; }
+  // Clusters beyond the per-cluster bound that the refined bound (mean rows) kept unchecked.
+  std::uint64_t refined_clusters() const noexcept { return refined_clusters_; }
   std::uint64_t vertices_computed() const noexcept { return vertices_computed_; }
   std::size_t cluster_count() const noexcept { return cluster_start_.size() - 1; }
   // The clusters' nodes: cluster c is cluster_nodes()[cluster_start(c) .. cluster_start(c+1)).
@@ -125,6 +127,7 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
     double bound_m = 0.0;     // this step: epoch_bound()
     std::span<double> abs_dq;  // per step (scratch): |q − this q| per mode, and its 2-norm
     std::span<float> abs_dq_f;  // idem in float (rounded up)
+    std::span<float> dq_f;      // q − this q per mode, signed, in float (rounded to nearest)
     double dq_norm = 0.0;
     std::uint32_t users = 0;  // clusters referring to it
     std::span<std::int32_t> delta_index;
@@ -165,6 +168,10 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // d_c + min(‖Φ‖ ‖Δq‖, Σ_j max|Φ_j| |Δq_j|) + Σ_l max‖R_l‖ ‖ΔF_l‖ + rounding.
   void epoch_cluster_pass(std::uint32_t epoch) noexcept;
   double epoch_bound(const Epoch& epoch) const noexcept;  // every cluster of the epoch at once
+  // A cluster beyond the budget after epoch_cluster_pass: the bound again with the modes' part
+  // split at the cluster's mean rows Φ̄ (per axis): |Φ̄ Δq| computed (float, with its rounding
+  // bound) + the rows' spread about it, min(max‖Φ_row − Φ̄‖ ‖Δq‖, Σ_j max|Φ_row,j − Φ̄_j| |Δq_j|).
+  double refined_bound(std::size_t cluster) const noexcept;
   double rounding_m(const Epoch& epoch) const noexcept;
   double state_magnitude(std::span<const float> modes, std::span<const Load> loads) const noexcept;
   // The next epoch of the ring, holding this step's snapshot; the clusters that referred to
@@ -196,6 +203,13 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::span<float> shape_max_t_;            // active × stride: max over the rows |Φ_row,j|
   std::span<float> residual_max_t_;         // s × stride: max over the rows ‖R_row,l‖₂ (rounded up)
   std::span<double> row_norm_max_;          // cluster: max over rows ‖Φ_row‖₂ (active columns)
+  std::span<float> centre_rows_;            // cluster × 3 × active: the mean row Φ̄ per axis
+  std::span<float> spread_max_t_;           // active × stride: max over rows |Φ_row,j − Φ̄_j| (rounded up)
+  std::span<double> spread_norm_max_;       // cluster: max over rows ‖Φ_row − Φ̄‖₂ (rounded up)
+  // Per cluster, this step's epoch_cluster_pass parts: Σ_j max|Φ_row,j| |Δq_j| and the loads'
+  // part (float sums, with their covering factor).
+  std::span<double> mode_sum_;
+  std::span<double> load_part_;
   std::span<double> all_shape_max_;         // active: the maxima over every cluster
   double all_row_norm_max_ = 0.0;
   std::span<double> all_residual_max_;      // s: idem
@@ -244,6 +258,7 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::uint64_t checked_steps_ = 0;
   std::uint64_t full_steps_ = 0;
   std::uint64_t rebased_steps_ = 0;
+  std::uint64_t refined_clusters_ = 0;
   std::uint64_t vertices_computed_ = 0;
 };
 
