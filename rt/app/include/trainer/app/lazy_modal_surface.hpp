@@ -22,6 +22,11 @@
 // static correction summed as reconstruct() sums it), so the positions the narrow phases read
 // are bit-identical to a full reconstruction.
 //
+// Round 4 (lazy_modal_surface_all.cpp): a cluster beyond its bound gets a tighter one about its
+// mean rows before it is checked; with more than a fifth of the nodes to check, every vertex is
+// computed in one fused pass and every cluster compared exactly, and without a refit this state
+// becomes every cluster's reference (as after a full step whose refit skipped).
+//
 // Use: begin() after every model step (it snapshots q and the static-correction loads; the
 // vertices are computed from the snapshot, so nothing later in the cycle can make them
 // disagree), then hand broad_phase() to the narrow phases: query() and query_segment() make the
