@@ -88,6 +88,11 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
     index[data.surface_nodes[k]] = static_cast<std::int32_t>(k);
   }
   lazy.surface_index_ = index;
+  lazy.surface_first_node_ = s > 0 ? data.surface_nodes[0] : 0;
+  lazy.surface_run_ = s > 0;
+  for (std::size_t k = 0; k < s && lazy.surface_run_; ++k) {
+    lazy.surface_run_ = data.surface_nodes[k] == lazy.surface_first_node_ + k;
+  }
 
   // Clusters.
   std::vector<std::uint32_t> order(n);
@@ -104,6 +109,11 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
                 lazy_surface_carve(arena, clusters + 1, "lazy surface: clusters", lazy.cluster_start_).is_ok() &&
                 lazy_surface_carve(arena, active * padded, "lazy surface: shape maxima", lazy.shape_max_t_).is_ok() &&
                 lazy_surface_carve(arena, clusters, "lazy surface: row norms", lazy.row_norm_max_).is_ok() &&
+                lazy_surface_carve(arena, clusters * 3 * active, "lazy surface: mean rows", lazy.centre_rows_).is_ok() &&
+                lazy_surface_carve(arena, active * padded, "lazy surface: spread maxima", lazy.spread_max_t_).is_ok() &&
+                lazy_surface_carve(arena, clusters, "lazy surface: spread norms", lazy.spread_norm_max_).is_ok() &&
+                lazy_surface_carve(arena, clusters, "lazy surface: mode sums", lazy.mode_sum_).is_ok() &&
+                lazy_surface_carve(arena, clusters, "lazy surface: load parts", lazy.load_part_).is_ok() &&
                 lazy_surface_carve(arena, lazy.static_correction_ ? s * padded : 1, "lazy surface: residual maxima",
                                    lazy.residual_max_t_).is_ok() &&
                 lazy_surface_carve(arena, clusters, "lazy surface: cluster epochs", lazy.cluster_epoch_).is_ok() &&
@@ -119,6 +129,14 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
                     .is_ok() &&
                 lazy_surface_carve(arena, 3 * s, "lazy surface: residual scratch", lazy.full_residual_).is_ok() &&
                 lazy_surface_carve(arena, n, "lazy surface: stamps", lazy.stamp_).is_ok() &&
+                lazy_surface_carve(arena, 3 * n, "lazy surface: coordinate deviations", lazy.coordinate_deviation_)
+                    .is_ok() &&
+                lazy_surface_carve(arena, 3 * model::ModalModel::kMaxLoadedNodes, "lazy surface: load rows",
+                                   lazy.load_rows_)
+                    .is_ok() &&
+                lazy_surface_carve(arena, 3 * model::ModalModel::kMaxLoadedNodes, "lazy surface: load forces",
+                                   lazy.load_forces_)
+                    .is_ok() &&
                 lazy_surface_carve(arena, n, "lazy surface: pending", lazy.pending_).is_ok();
   for (std::size_t e = 0; carved && e < kEpochs; ++e) {
     Epoch& epoch = lazy.epochs_[e];
@@ -127,6 +145,7 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
                  .is_ok() &&
              lazy_surface_carve(arena, active, "lazy surface: epoch mode changes", epoch.abs_dq).is_ok() &&
              lazy_surface_carve(arena, active, "lazy surface: epoch mode changes f", epoch.abs_dq_f).is_ok() &&
+             lazy_surface_carve(arena, active, "lazy surface: epoch signed mode changes", epoch.dq_f).is_ok() &&
              lazy_surface_carve(arena, 2 * model::ModalModel::kMaxLoadedNodes, "lazy surface: epoch deltas",
                                 epoch.delta_index)
                  .is_ok() &&
@@ -143,6 +162,7 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
   std::copy(order.begin(), order.end(), lazy.cluster_nodes_.begin());
   std::copy(starts.begin(), starts.end(), lazy.cluster_start_.begin());
   std::fill(lazy.shape_max_t_.begin(), lazy.shape_max_t_.end(), 0.0F);
+  std::fill(lazy.spread_max_t_.begin(), lazy.spread_max_t_.end(), 0.0F);
   std::fill(lazy.row_norm_max_.begin(), lazy.row_norm_max_.end(), 0.0);
   std::fill(lazy.residual_max_t_.begin(), lazy.residual_max_t_.end(), 0.0F);
   std::fill(lazy.all_shape_max_.begin(), lazy.all_shape_max_.end(), 0.0);
@@ -191,6 +211,32 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
         }
       }
     }
+    // The mean row per axis (rounded to float: the bound uses the stored value) and the rows'
+    // spread about it (differences of floats: exact in double; maxima rounded up).
+    const std::uint32_t members = lazy.cluster_start_[c + 1] - lazy.cluster_start_[c];
+    double spread_norm = 0.0;
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+      float* centre = lazy.centre_rows_.data() + (3 * c + axis) * active;
+      for (std::size_t j = 0; j < active; ++j) {
+        double sum = 0.0;
+        for (std::uint32_t k = lazy.cluster_start_[c]; k < lazy.cluster_start_[c + 1]; ++k) {
+          sum += static_cast<double>(data.mode_shapes[(3 * static_cast<std::size_t>(lazy.cluster_nodes_[k]) + axis) * r + j]);
+        }
+        centre[j] = static_cast<float>(sum / static_cast<double>(members));
+      }
+      for (std::uint32_t k = lazy.cluster_start_[c]; k < lazy.cluster_start_[c + 1]; ++k) {
+        const float* row = data.mode_shapes.data() + (3 * static_cast<std::size_t>(lazy.cluster_nodes_[k]) + axis) * r;
+        double squared = 0.0;
+        for (std::size_t j = 0; j < active; ++j) {
+          const double spread = std::abs(static_cast<double>(row[j]) - static_cast<double>(centre[j]));
+          squared += spread * spread;
+          float& stored = lazy.spread_max_t_[j * padded + c];
+          stored = std::max(stored, float_up(spread));
+        }
+        spread_norm = std::max(spread_norm, std::sqrt(squared));
+      }
+    }
+    lazy.spread_norm_max_[c] = spread_norm * (1.0 + 1e-12);
     // Float copies, transposed: |Φ| is a float already; a residual norm is rounded up.
     for (std::size_t j = 0; j < active; ++j) {
       lazy.all_shape_max_[j] = std::max(lazy.all_shape_max_[j], shape_max[c * active + j]);

@@ -234,10 +234,16 @@ TEST(LazyModalSurface, ClusterBoundsAreConservativeUnderRandomLoads) {
   EXPECT_GT(rig.lazy_steps, 100U);
   EXPECT_GT(rig.lazy->checked_steps(), 10U);
   EXPECT_GT(rig.full_steps, 10U);
+  // Round 4's paths ran under the bound check too: clusters kept by the mean-row bound, and
+  // whole-surface steps rebased without a refit.
+  EXPECT_GT(rig.lazy->refined_clusters(), 10U);
+  EXPECT_GT(rig.lazy->rebased_steps(), 0U);
   RecordProperty("bound_tightness", std::to_string(tightest));
-  std::printf("lazy %llu (checked %llu) full %llu (refit not needed %llu), largest motion / bound %.3f\n",
+  std::printf("lazy %llu (checked %llu, refined clusters %llu, rebased %llu) full %llu (refit not needed %llu), largest motion / bound %.3f\n",
               static_cast<unsigned long long>(rig.lazy_steps),
               static_cast<unsigned long long>(rig.lazy->checked_steps()),
+              static_cast<unsigned long long>(rig.lazy->refined_clusters()),
+              static_cast<unsigned long long>(rig.lazy->rebased_steps()),
               static_cast<unsigned long long>(rig.full_steps),
               static_cast<unsigned long long>(rig.needless_full_steps), tightest);
 }

@@ -160,7 +160,7 @@ class TriangleBvh final : public TriangleBroadPhase {
   core::Status query_within(const Aabb& box, float deviation_m, std::span<std::uint32_t> out_ids,
                             std::size_t& out_count) noexcept;
 
-  std::size_t triangle_count() const noexcept { return triangle_boxes_.size(); }
+  std::size_t triangle_count() const noexcept { return triangles_.size() / 3; }
   std::size_t vertex_count() const noexcept { return reference_.size() / 3; }
   std::size_t node_count() const noexcept { return nodes_.size(); }
   std::size_t depth() const noexcept { return depth_; }
@@ -218,14 +218,20 @@ class TriangleBvh final : public TriangleBroadPhase {
                                  std::size_t& out_count) noexcept;
 
   std::span<std::uint32_t> triangles_;  // 3m, a copy of create()'s
-  std::span<Node> nodes_;
+  std::span<Node> nodes_;  // the binary tree (create); refit keeps only the root's box (bounds())
   std::span<std::uint32_t> order_;     // triangle ids, leaf by leaf
-  std::span<Aabb> triangle_boxes_;     // per triangle, grown by slack_m_
   std::span<float> reference_;         // 3n: the positions of the last refit
   std::span<std::uint64_t> hit_bits_;  // per triangle, one query's hits (all zero between queries)
   std::span<WideNode> wide_;           // root first
   std::span<AabbPack4> leaf_packs_;    // each leaf's triangle boxes, 4 per pack (stored boxes)
   std::span<std::uint32_t> pack_ids_;  // 4 per pack: the triangle in each lane
+  // A box as two quads (x y z and an unused lane): refit_boxes' unions per pack and per wide node.
+  struct alignas(16) BoxQuads {
+    float low[4];
+    float high[4];
+  };
+  std::span<BoxQuads> pack_box_;  // per pack: the union of its lanes
+  std::span<BoxQuads> wide_box_;  // per wide node: the union of its lanes
   std::size_t depth_ = 0;
   float slack_m_ = 0.0F;
   float rounding_guard_m_ = 0.0F;  // of query_segment_within / query_within, set by refit_boxes

@@ -22,6 +22,11 @@
 // static correction summed as reconstruct() sums it), so the positions the narrow phases read
 // are bit-identical to a full reconstruction.
 //
+// Round 4 (lazy_modal_surface_all.cpp): a cluster beyond its bound gets a tighter one about its
+// mean rows before it is checked; with more than a fifth of the nodes to check, every vertex is
+// computed in one fused pass and every cluster compared exactly, and without a refit this state
+// becomes every cluster's reference (as after a full step whose refit skipped).
+//
 // Use: begin() after every model step (it snapshots q and the static-correction loads; the
 // vertices are computed from the snapshot, so nothing later in the cycle can make them
 // disagree), then hand broad_phase() to the narrow phases: query() and query_segment() make the
@@ -88,12 +93,20 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // were checked at (the oldest's clusters move to the newest). Measured on the cbd duct: 2
   // (a ring of one) costs less per step than 4 and checks about as many clusters.
   static constexpr std::uint32_t kEpochs = 2;
+  // After a step that computed every vertex, the next one whose common bound is beyond the
+  // budget computes every vertex again without the per-cluster pass.
+  static constexpr bool kAllAfterAll = true;
 
   // Since create(): steps taken lazily (some clusters' vertices maybe checked, no refit), of
   // them the ones that checked clusters, full reconstructions, vertices computed lazily.
   std::uint64_t lazy_steps() const noexcept { return lazy_steps_; }
   std::uint64_t checked_steps() const noexcept { return checked_steps_; }
   std::uint64_t full_steps() const noexcept { return full_steps_; }
+  // Of the checked steps, those that computed every vertex and took this state as every
+  // cluster's reference (each cluster's exact deviation; no refit): the 1 kHz held contact.
+  std::uint64_t rebased_steps() const noexcept { return rebased_steps_; }
+  // Clusters beyond the per-cluster bound that the refined bound (mean rows) kept unchecked.
+  std::uint64_t refined_clusters() const noexcept { return refined_clusters_; }
   std::uint64_t vertices_computed() const noexcept { return vertices_computed_; }
   std::size_t cluster_count() const noexcept { return cluster_start_.size() - 1; }
   // The clusters' nodes: cluster c is cluster_nodes()[cluster_start(c) .. cluster_start(c+1)).
@@ -125,6 +138,7 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
     double bound_m = 0.0;     // this step: epoch_bound()
     std::span<double> abs_dq;  // per step (scratch): |q − this q| per mode, and its 2-norm
     std::span<float> abs_dq_f;  // idem in float (rounded up)
+    std::span<float> dq_f;      // q − this q per mode, signed, in float (rounded to nearest)
     double dq_norm = 0.0;
     std::uint32_t users = 0;  // clusters referring to it
     std::span<std::int32_t> delta_index;
@@ -151,12 +165,24 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   void compute_pending(std::size_t pending) noexcept;
   void finish_node(std::uint32_t node) noexcept;
   void compute_remaining() noexcept;  // every node not yet current this step
+  void compute_all_fused() noexcept;  // every node, one pass (see compute_remaining)
+  // After compute_remaining: every cluster's deviation from the hierarchy's reference into
+  // checked_deviation_[cluster] (as refit compares); false when one is beyond the slack or
+  // not finite.
+  bool all_cluster_deviations(float slack_m) noexcept;
+  // This state (every vertex computed, none beyond the slack) becomes every cluster's
+  // reference (epoch 0) with its exact deviation: what finish_full does when the refit skips.
+  void rebase_all() noexcept;
   void ensure_candidates(std::span<const std::uint32_t> ids) noexcept;
   void prepare_epoch(Epoch& epoch) noexcept;
   // The bound of every cluster of `epoch` into bound_ (in packets over the clusters):
   // d_c + min(‖Φ‖ ‖Δq‖, Σ_j max|Φ_j| |Δq_j|) + Σ_l max‖R_l‖ ‖ΔF_l‖ + rounding.
   void epoch_cluster_pass(std::uint32_t epoch) noexcept;
   double epoch_bound(const Epoch& epoch) const noexcept;  // every cluster of the epoch at once
+  // A cluster beyond the budget after epoch_cluster_pass: the bound again with the modes' part
+  // split at the cluster's mean rows Φ̄ (per axis): |Φ̄ Δq| computed (float, with its rounding
+  // bound) + the rows' spread about it, min(max‖Φ_row − Φ̄‖ ‖Δq‖, Σ_j max|Φ_row,j − Φ̄_j| |Δq_j|).
+  double refined_bound(std::size_t cluster) const noexcept;
   double rounding_m(const Epoch& epoch) const noexcept;
   double state_magnitude(std::span<const float> modes, std::span<const Load> loads) const noexcept;
   // The next epoch of the ring, holding this step's snapshot; the clusters that referred to
@@ -188,6 +214,13 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::span<float> shape_max_t_;            // active × stride: max over the rows |Φ_row,j|
   std::span<float> residual_max_t_;         // s × stride: max over the rows ‖R_row,l‖₂ (rounded up)
   std::span<double> row_norm_max_;          // cluster: max over rows ‖Φ_row‖₂ (active columns)
+  std::span<float> centre_rows_;            // cluster × 3 × active: the mean row Φ̄ per axis
+  std::span<float> spread_max_t_;           // active × stride: max over rows |Φ_row,j − Φ̄_j| (rounded up)
+  std::span<double> spread_norm_max_;       // cluster: max over rows ‖Φ_row − Φ̄‖₂ (rounded up)
+  // Per cluster, this step's epoch_cluster_pass parts: Σ_j max|Φ_row,j| |Δq_j| and the loads'
+  // part (float sums, with their covering factor).
+  std::span<double> mode_sum_;
+  std::span<double> load_part_;
   std::span<double> all_shape_max_;         // active: the maxima over every cluster
   double all_row_norm_max_ = 0.0;
   std::span<double> all_residual_max_;      // s: idem
@@ -220,6 +253,14 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
 
   std::span<float> full_residual_;  // the full path's Σ_l R_kl F_l over the surface, 3s
   bool full_residual_valid_ = false;
+  // The surface nodes are one run of nodes in order: node surface_first_node_ + k is surface
+  // node k, every other node off the surface (the duct: nodes 16..335).
+  bool surface_run_ = false;
+  std::uint32_t surface_first_node_ = 0;
+  bool all_last_ = false;          // the last step computed every vertex (and did not refit)
+  std::span<float> coordinate_deviation_;
+  std::span<const float*> load_rows_;  // scratch, 3 per load: compute_all_fused's R rows
+  std::span<float> load_forces_;       // and their force components  // scratch, 3n: |now − the hierarchy's reference|
   std::span<std::uint64_t> stamp_;  // per vertex: the step it was computed for
   std::span<std::uint32_t> pending_;  // scratch: nodes to compute
   std::uint64_t step_ = 0;
@@ -227,6 +268,8 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::uint64_t lazy_steps_ = 0;
   std::uint64_t checked_steps_ = 0;
   std::uint64_t full_steps_ = 0;
+  std::uint64_t rebased_steps_ = 0;
+  std::uint64_t refined_clusters_ = 0;
   std::uint64_t vertices_computed_ = 0;
 };
 
