@@ -186,6 +186,8 @@ core::Expected<TriangleBvh> TriangleBvh::create(std::span<const float> positions
   if (!packs) return std::move(packs).error();
   auto pack_ids = carve_bvh<std::uint32_t>(arena, wide.pack_ids.size(), "bvh pack ids");
   if (!pack_ids) return std::move(pack_ids).error();
+  auto triangle_lane = carve_bvh<std::uint32_t>(arena, triangle_count, "bvh triangle lanes");
+  if (!triangle_lane) return std::move(triangle_lane).error();
   bvh.nodes_ = nodes.value();
   for (std::size_t n = 0; n < builder.nodes.size(); ++n) {
     bvh.nodes_[n] = Node{kEmptyBox, builder.nodes[n].first, builder.nodes[n].second};
@@ -213,6 +215,10 @@ core::Expected<TriangleBvh> TriangleBvh::create(std::span<const float> positions
   bvh.pack_box_ = pack_box.value();
   bvh.wide_box_ = wide_box.value();
   std::copy(wide.pack_ids.begin(), wide.pack_ids.end(), bvh.pack_ids_.begin());
+  bvh.triangle_lane_ = triangle_lane.value();
+  for (std::size_t k = 0; k < wide.pack_ids.size(); ++k) {
+    if (wide.pack_ids[k] < triangle_count) bvh.triangle_lane_[wide.pack_ids[k]] = static_cast<std::uint32_t>(k);
+  }
   std::fill(bvh.hit_bits_.begin(), bvh.hit_bits_.end(), std::uint64_t{0});
   bvh.depth_ = builder.depth;
   if (const core::Status status = bvh.refit(positions_m, 0.0F); !status.is_ok()) {
@@ -635,7 +641,8 @@ bool TriangleBvh::fill_cache(QueryCache& cache, Accept4&& accept4, const Vec3& p
     for (int lane = 0; lane < 4; ++lane) {
       const std::size_t k = 4 * pack + static_cast<std::size_t>(lane);
       if (k < count) {
-        cache.packs[pack].set(lane, triangle_boxes_[cache.ids[k]]);
+        const std::uint32_t slot = triangle_lane_[cache.ids[k]];
+        cache.packs[pack].copy_lane(lane, leaf_packs_[slot / 4], static_cast<int>(slot % 4));
       } else {
         cache.packs[pack].clear(lane);
       }

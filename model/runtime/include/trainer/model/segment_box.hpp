@@ -49,6 +49,14 @@ struct alignas(16) AabbPack4 {
     max_y[lane] = box.max_m.y();
     max_z[lane] = box.max_m.z();
   }
+  void copy_lane(int lane, const AabbPack4& from, int from_lane) noexcept {
+    min_x[lane] = from.min_x[from_lane];
+    min_y[lane] = from.min_y[from_lane];
+    min_z[lane] = from.min_z[from_lane];
+    max_x[lane] = from.max_x[from_lane];
+    max_y[lane] = from.max_y[from_lane];
+    max_z[lane] = from.max_z[from_lane];
+  }
   void clear(int lane) noexcept {
     constexpr float kInfinity = std::numeric_limits<float>::infinity();
     min_x[lane] = min_y[lane] = min_z[lane] = kInfinity;

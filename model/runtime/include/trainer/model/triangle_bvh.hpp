@@ -225,6 +225,7 @@ class TriangleBvh final : public TriangleBroadPhase {
   std::span<WideNode> wide_;           // root first
   std::span<AabbPack4> leaf_packs_;    // each leaf's triangle boxes, 4 per pack (stored boxes)
   std::span<std::uint32_t> pack_ids_;  // 4 per pack: the triangle in each lane
+  std::span<std::uint32_t> triangle_lane_;  // per triangle: 4 × its pack + its lane (the cached queries' boxes)
   // A box as two quads (x y z and an unused lane): refit_boxes' unions per pack and per wide node.
   struct alignas(16) BoxQuads {
     float low[4];

@@ -35,10 +35,13 @@ inline constexpr float kJawRadiusM = 0.001F;
 inline constexpr float kSurfaceMarginM = 0.02F;
 // Slack of the surfaces' broad phases, in units of the rest mesh's longest edge: a refit stores
 // every triangle with its box grown by it, and the next refit is skipped while no coordinate
-// has moved farther (TriangleBvh::refit). 0.375 edge (0.75 mm on the duct) is the slack the
-// bucket grid had (a quarter of its 1.5-edge cell); a refit costs a pass over the triangles
-// and nodes, not the grid's rebuild (docs/collision.md measures both).
-inline constexpr float kGridSlackEdges = 0.375F;
+// has moved farther (TriangleBvh::refit). 0.75 edge (1.5 mm on the duct), up from the bucket
+// grid's 0.375 (issue 19, round 4): at 1 kHz a held tool moves the duct's surface by a good part
+// of 0.75 mm per step, so the lazy surface checked or recomputed most vertices and refitted; with
+// 1.5 mm the cbd 1 kHz per-cycle-minimum p99.9 fell 23.7–24.2 → 19.2–20.4 µs for 14.6–14.7 →
+// 15.3–16.1 µs at 10 kHz (larger boxes, more candidates), contacts bit-identical
+// (docs/performance.md "After round 4").
+inline constexpr float kGridSlackEdges = 0.75F;
 
 class LazyModalSurface;
 
