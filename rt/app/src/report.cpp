@@ -403,7 +403,7 @@ void summarize_catheter(const RunResult& r, const LoadedModelInfo& m, const Cath
         << " mm: " << (c.target_reached ? "reached" : "NOT reached") << "), wall contact cycles "
         << c.wall_contact_cycles << "\n";
   }
-  out << "  model '" << m.name << "': catheter, " << m.particle_count << " particles, stable step "
+  out << "  model '" << m.name << "': catheter, " << m.particle_count << " particles, largest substep "
       << microseconds_of_seconds(m.stable_substep_s) << " us, " << m.substeps_per_period
       << " substeps per " << microseconds(r.period_ns) << " us period (budget " << m.max_substeps
       << "), " << (m.hold_start ? "held at the introducer" : "free start") << ", image "
