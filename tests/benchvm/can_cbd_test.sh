@@ -11,7 +11,7 @@
 # target reached (cycle 6293); the withdrawal after it is left to a full run.
 # Exit 77 (skip) when the bench VM cannot run here.
 set -euo pipefail
-src=$1 bin=$2 slow=${3:-16}
+src=$1 bin=$2 slow=${3:-8}
 work=${4:--}
 length=()
 [ -z "${5:-}" ] || length=(--cycles "$5")
@@ -27,8 +27,9 @@ device=config/devices/canopen_vcan.toml
 cycles=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['cycles'])" "$work/sim_report.json")
 # Two virtual CPUs: the trainer and simdrive each get one, as on a bench with two machines
 # (on one emulated CPU the drives' work lands inside the trainer's write stage). Slow motion
-# 16: the emulated cbd cycle takes ~4 ms of the 16 ms a period then lasts, and a hiccup of the
-# emulator must last two periods (32 ms) to make a TPDO two SYNCs late.
+# 8 (16 until issue 19's round 4 made the cycle faster): a period lasts 8 ms, and a hiccup of the
+# emulator must last two periods (16 ms) to make a TPDO two SYNCs late (docs/bench-vm.md,
+# "Slow motion 8"; it needs an idle host).
 status=0
 tools/benchvm/benchvm run --smp 2 --timeout 900 --out "$work" -- \
   tests/benchvm/can_session.sh "$bin" "$scene" "$device" 1000 "$cycles" "$slow" || status=$?

@@ -9,7 +9,7 @@
 # default the whole script. CI runs 7000 (contacts, grasp, insertion target reached).
 # Exit 77 (skip) when the bench VM cannot run here.
 set -euo pipefail
-src=$1 bin=$2 slow=${3:-16}
+src=$1 bin=$2 slow=${3:-8}
 work=${4:--}
 length=()
 [ -z "${5:-}" ] || length=(--cycles "$5")
@@ -22,7 +22,7 @@ device=config/devices/usb_benchvm.toml
 "$bin/trainer" --scene "$scene" --device "$device" --hal sim --time simulated "${length[@]}" \
   --report "$work/sim_report.json" >"$work/sim.txt"
 cycles=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['cycles'])" "$work/sim_report.json")
-# Two virtual CPUs, slow motion 16: as the CAN cbd session (can_cbd_test.sh).
+# Two virtual CPUs, slow motion 8: as the CAN cbd session (can_cbd_test.sh).
 status=0
 tools/benchvm/benchvm run --smp 2 --timeout 900 --out "$work" -- \
   tests/benchvm/usb_trainer_session.sh "$bin" "$scene" "$device" 1000 "$cycles" "$slow" || status=$?
