@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "catheter_advance.hpp"
 #include "trainer/model/catheter.hpp"
 
 namespace trainer::model {
@@ -232,28 +233,16 @@ bool Catheter::substep(float dt_s, float fraction, float hold_step) noexcept {
     }
     plane_forces_n_[k] += (fraction * f) * plane.normal;
   }
-  bool finite = true;
-  for (std::uint32_t i = 0; i < count_; ++i) {
-    if (held_[i] != 0) {
-      // The pin balances every force on the particle over the substep, the implicit ones at
-      // their end-of-substep values: F̂_i − ((A − m I) v')_i / h. The holder feels it.
-      Eigen::Vector3d implicit = diagonal_[i] * solution_[i] - mass * solution_[i];
-      if (i >= 1) implicit.noalias() += band1_[i - 1] * solution_[i - 1];
-      if (i + 1 < count_) implicit.noalias() += band1_[i] * solution_[i + 1];
-      if (i >= 2) implicit += band2_[i - 2] * solution_[i - 2];
-      if (i + 2 < count_) implicit += band2_[i] * solution_[i + 2];
-      const Eigen::Vector3d force = (forces_[i] + contact_n_[i]).cast<double>() - implicit / h;
-      hold_forces_n_[i] += fraction * force.cast<float>();
-      const Vec3 start = saved_positions_[i];
-      positions_[i] = hold_step >= 1.0F ? hold_targets_m_[i] : Vec3(start + hold_step * (hold_targets_m_[i] - start));
-      velocities_[i] = (hold_targets_m_[i] - start) / (dt_s / fraction);
-      continue;
-    }
-    velocities_[i] = solution_[i].cast<float>();  // v_{t+Δt} from the implicit solve
-    positions_[i] += dt_s * velocities_[i];       // p_{t+Δt} = p_t + Δt v_{t+Δt}
-    finite = finite && positions_[i].allFinite() && velocities_[i].allFinite();
-  }
-  return finite;
+  return advance(dt_s, fraction, hold_step, [&](std::uint32_t i) {
+    // The pin balances every force on the particle over the substep, the implicit ones at
+    // their end-of-substep values: F̂_i − ((A − m I) v')_i / h. The holder feels it.
+    Eigen::Vector3d implicit = diagonal_[i] * solution_[i] - mass * solution_[i];
+    if (i >= 1) implicit.noalias() += band1_[i - 1] * solution_[i - 1];
+    if (i + 1 < count_) implicit.noalias() += band1_[i] * solution_[i + 1];
+    if (i >= 2) implicit += band2_[i - 2] * solution_[i - 2];
+    if (i + 2 < count_) implicit += band2_[i] * solution_[i + 2];
+    return Eigen::Vector3d((forces_[i] + contact_n_[i]).cast<double>() - implicit / h);
+  });
 }
 
 }  // namespace trainer::model

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "catheter_advance.hpp"
 #include "trainer/model/catheter.hpp"
 
 namespace trainer::model {
@@ -89,27 +90,15 @@ void Catheter::solve_tridiagonal(float dt_s, float period_fraction) noexcept {
 bool Catheter::substep_tridiagonal(float dt_s, float fraction, float hold_step) noexcept {
   explicit_forces(dt_s, fraction);
   solve_tridiagonal(dt_s, fraction);
-  bool finite = true;
   const double h = static_cast<double>(dt_s);
-  for (std::uint32_t i = 0; i < count_; ++i) {
-    if (held_[i] != 0) {
-      // The pin balances every force on the particle over the substep, the implicit ones at
-      // their end-of-substep values: F(p) − b v' − h Σ_s H_s (v'_i − v'_j). The holder feels it.
-      Eigen::Vector3d force = forces_[i].cast<double>() -
-                              static_cast<double>(damping_n_s_per_m_) * solution_[i];
-      if (i > 0) force -= coupling_[i - 1].times(solution_[i] - solution_[i - 1]) / h;
-      if (i + 1 < count_) force -= coupling_[i].times(solution_[i] - solution_[i + 1]) / h;
-      hold_forces_n_[i] += fraction * force.cast<float>();
-      const Vec3 start = saved_positions_[i];
-      positions_[i] = hold_step >= 1.0F ? hold_targets_m_[i] : Vec3(start + hold_step * (hold_targets_m_[i] - start));
-      velocities_[i] = (hold_targets_m_[i] - start) / (dt_s / fraction);
-      continue;
-    }
-    velocities_[i] = solution_[i].cast<float>();  // v_{t+Δt} from the implicit solve
-    positions_[i] += dt_s * velocities_[i];       // p_{t+Δt} = p_t + Δt v_{t+Δt}
-    finite = finite && positions_[i].allFinite() && velocities_[i].allFinite();
-  }
-  return finite;
+  return advance(dt_s, fraction, hold_step, [&](std::uint32_t i) {
+    // The pin balances every force on the particle over the substep, the implicit ones at
+    // their end-of-substep values: F(p) − b v' − h Σ_s H_s (v'_i − v'_j). The holder feels it.
+    Eigen::Vector3d force = forces_[i].cast<double>() - static_cast<double>(damping_n_s_per_m_) * solution_[i];
+    if (i > 0) force -= coupling_[i - 1].times(solution_[i] - solution_[i - 1]) / h;
+    if (i + 1 < count_) force -= coupling_[i].times(solution_[i] - solution_[i + 1]) / h;
+    return force;
+  });
 }
 
 }  // namespace trainer::model

@@ -412,19 +412,10 @@ bool LazyModalSurface::finish_full(ContactSurface& surface) noexcept {
   if (!surface.refit_grid()) return false;  // refused (non-finite): the hierarchy is empty
   within_m_ = surface.grid->last_deviation_m();  // these positions are the ones the refit saw
   if (!lazy_allowed_) return true;
-  for (Epoch& epoch : epochs_) epoch.users = 0;
   magnitude_ = state_magnitude(modes_, loads_.first(load_count_));
-  latest_epoch_ = 0;
-  Epoch& epoch = epochs_[0];
-  std::copy(modes_.begin(), modes_.end(), epoch.modes.begin());
-  std::copy(loads_.begin(), loads_.begin() + static_cast<std::ptrdiff_t>(load_count_), epoch.loads.begin());
-  epoch.load_count = load_count_;
-  epoch.magnitude = magnitude_;
-  epoch.delta_step = 0;
-  epoch.users = static_cast<std::uint32_t>(cluster_count());
+  restart_epochs();
   const bool refitted = surface.grid->last_deviation_m() == 0.0F;
   for (std::size_t c = 0; c < cluster_count(); ++c) {
-    cluster_epoch_[c] = 0;
     used_m_[c] = refitted ? 0.0 : static_cast<double>(cluster_deviation(c));
   }
   update_max_used();

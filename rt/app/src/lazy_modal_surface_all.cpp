@@ -128,7 +128,7 @@ bool LazyModalSurface::all_cluster_deviations(float slack_m) noexcept {
   return within;
 }
 
-void LazyModalSurface::rebase_all() noexcept {
+void LazyModalSurface::restart_epochs() noexcept {
   for (Epoch& epoch : epochs_) epoch.users = 0;
   latest_epoch_ = 0;
   Epoch& epoch = epochs_[0];
@@ -138,10 +138,12 @@ void LazyModalSurface::rebase_all() noexcept {
   epoch.magnitude = magnitude_;
   epoch.delta_step = 0;
   epoch.users = static_cast<std::uint32_t>(cluster_count());
-  for (std::size_t c = 0; c < cluster_count(); ++c) {
-    cluster_epoch_[c] = 0;
-    used_m_[c] = static_cast<double>(checked_deviation_[c]);
-  }
+  std::fill(cluster_epoch_.begin(), cluster_epoch_.begin() + static_cast<std::ptrdiff_t>(cluster_count()), 0U);
+}
+
+void LazyModalSurface::rebase_all() noexcept {
+  restart_epochs();
+  for (std::size_t c = 0; c < cluster_count(); ++c) used_m_[c] = static_cast<double>(checked_deviation_[c]);
   update_max_used();
 }
 

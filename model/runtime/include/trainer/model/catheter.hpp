@@ -374,6 +374,11 @@ class Catheter {
   // implicit axial springs and damping only, a block-tridiagonal solve (catheter_tridiagonal.cpp).
   bool substep_tridiagonal(float dt_s, float fraction, float hold_step) noexcept;
   void solve_tridiagonal(float dt_s, float period_fraction) noexcept;
+  // After either solve: a held particle's pin force (hold_force(i), double) averaged into
+  // hold_forces_n_ and the particle moved along its hold path; a free one takes v' (solution_)
+  // and moves by h v'. false if a free particle became non-finite (catheter_advance.hpp).
+  template <class HoldForce>
+  bool advance(float dt_s, float fraction, float hold_step, HoldForce&& hold_force) noexcept;
   // The substep's explicit forces into forces_: external, axial at the current positions,
   // bending, contact planes; and the segments' unit vectors and lengths (segment_units_).
   // Marks the planes active and unclamped at the substep start for the implicit solve

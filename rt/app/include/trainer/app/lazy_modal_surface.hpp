@@ -172,6 +172,8 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   bool all_cluster_deviations(float slack_m) noexcept;
   // This state (every vertex computed, none beyond the slack) becomes every cluster's
   // reference (epoch 0) with its exact deviation: what finish_full does when the refit skips.
+  // Epoch 0 := the current state (q, loads, magnitude), every cluster's epoch; the users reset.
+  void restart_epochs() noexcept;
   void rebase_all() noexcept;
   void ensure_candidates(std::span<const std::uint32_t> ids) noexcept;
   void prepare_epoch(Epoch& epoch) noexcept;
