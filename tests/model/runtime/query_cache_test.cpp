@@ -20,6 +20,8 @@
 
 #include <gtest/gtest.h>
 
+#include "all_triangles_broad_phase.hpp"
+
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
 #include "trainer/model/geometry.hpp"
@@ -291,18 +293,7 @@ TEST(CachedQueries, OverflowAnswersThePlainWayAndRefusalsNameTheValue) {
 // hierarchy's cached queries, over sequences where tools and particles move a little per cycle
 // (the caches are reused) and the wall deforms within the slack (sometimes beyond: a refit),
 // against the same narrow phases fed every triangle: bit-identical.
-class EveryTriangle final : public TriangleBroadPhase {
- public:
-  explicit EveryTriangle(std::size_t count) : count_(count) {}
-  core::Status query(const Aabb&, std::span<std::uint32_t> out, std::size_t& count) noexcept override {
-    count = std::min(out.size(), count_);
-    for (std::size_t t = 0; t < count; ++t) out[t] = static_cast<std::uint32_t>(t);
-    return core::Status::ok();
-  }
-
- private:
-  std::size_t count_;
-};
+using EveryTriangle = test_support::AllTriangles;
 
 TEST(CachedQueries, ContactsAreBitIdenticalToAllTrianglesOverMovingSequences) {
   CacheFixture f;

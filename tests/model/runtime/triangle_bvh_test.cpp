@@ -15,6 +15,8 @@
 
 #include <gtest/gtest.h>
 
+#include "all_triangles_broad_phase.hpp"
+
 #include "trainer/core/alloc_counter.hpp"
 #include "trainer/core/arena.hpp"
 #include "trainer/model/geometry.hpp"
@@ -78,18 +80,7 @@ void bvh_deform(BvhMesh& mesh, std::mt19937& rng, bool collapse) {
 }
 
 // The reference: every triangle, in id order.
-class AllTriangles final : public TriangleBroadPhase {
- public:
-  explicit AllTriangles(std::size_t count) : count_(count) {}
-  core::Status query(const Aabb&, std::span<std::uint32_t> out, std::size_t& count) noexcept override {
-    count = std::min(out.size(), count_);
-    for (std::size_t t = 0; t < count; ++t) out[t] = static_cast<std::uint32_t>(t);
-    return core::Status::ok();
-  }
-
- private:
-  std::size_t count_;
-};
+using AllTriangles = test_support::AllTriangles;
 
 // Random rounds of the brute-force comparisons: fewer in sanitizer builds (memory errors, not
 // statistics; the full counts take ~20 s under ASan).
