@@ -20,7 +20,10 @@ using detail::vertex_position;
 constexpr std::uint32_t kNoSlot = std::numeric_limits<std::uint32_t>::max();
 // A particle's kept candidates: its query box grown by 0.25 mm (a particle's box, some 5 mm
 // across, holds tens of the duct's slack-grown boxes; 1 mm more on each side overflowed 64).
-constexpr std::size_t kParticleCacheCapacity = 128;
+// A particle inside the duct's lumen while the duct is held deformed collects 120-180 (its
+// box spans most of the lumen's circumference): at 128 that overflowed, and every such query
+// traversed twice (the failed fill, then query_within); 256 holds it.
+constexpr std::size_t kParticleCacheCapacity = 256;
 constexpr float kParticleCacheMarginM = 2.5e-4F;
 using detail::kMinDirectionDistanceM;
 
