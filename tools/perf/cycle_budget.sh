@@ -22,7 +22,8 @@
 #                   before table's runs), row by row
 # Writes OUT/cbd-1khz.json, OUT/cbd-10khz.json (trainer reports with the "compute" section),
 # OUT/cbd-1khz.csv, OUT/cbd-10khz.csv (the per-cycle minimum of every cycle, ns: which cycles
-# are slow, and in which sub-stage), OUT/table.md (the table), and with --jitter
+# are slow, and in which sub-stage), OUT/table.md (the table, then per rate the slowest cycles
+# down to the p99.9 rank with their largest sub-stages: what sets the tail), and with --jitter
 # OUT/jitter-1khz/, OUT/jitter-10khz/ (jitter's output).
 set -euo pipefail
 
@@ -184,6 +185,35 @@ if baseline:
                 else:
                     cells.append(f"{us(b)} → {us(a)} ({a / b - 1:+.0%})" if b > 0 else f"{us(b)} → {us(a)}")
         print(f"| {label} | " + " | ".join(cells) + " |")
+# Which cycles set the tail: the slowest cycles of each rate down to the p99.9 rank (the
+# per-cycle CSV), each with its three largest sub-stages, and how many of the p99.9 set each
+# sub-stage leads.
+import csv, math
+substages = [s for subs in substage_order.values() for s in subs] + ["hal_read", "kinematics", "forces",
+                                                                     "hal_write", "publish"]
+for label in ("1khz", "10khz"):
+    path = os.path.join(out, f"cbd-{label}.csv")
+    if not os.path.exists(path):
+        continue
+    cycles = list(csv.DictReader(open(path)))
+    if not cycles:
+        continue
+    cycles.sort(key=lambda row: -float(row["step"]))
+    rank = max(1, math.ceil(0.001 * len(cycles)))
+    leaders = {}
+    for row in cycles[:rank]:
+        lead = max((k for k in substages if k in row), key=lambda k: float(row[k]))
+        leaders[lead] = leaders.get(lead, 0) + 1
+    print()
+    print(f"{label}: the {rank} slowest cycles (p99.9 = the {rank}th) lead by "
+          + ", ".join(f"{k} {n}" for k, n in sorted(leaders.items(), key=lambda kv: -kv[1])) + "; the "
+          + f"{min(rank, 12)} slowest:")
+    print()
+    print("| cycle | step µs | largest sub-stages (µs) |")
+    print("|---|---|---|")
+    for row in cycles[:min(rank, 12)]:
+        top = sorted((k for k in substages if k in row), key=lambda k: -float(row[k]))[:3]
+        print(f"| {row['cycle']} | {us(float(row['step']))} | " + ", ".join(f"{k} {us(float(row[k]))}" for k in top) + " |")
 if jitter_seconds != "0":
     print()
     print(f"Real time (`jitter`, {jitter_seconds} s per side, one after the other, SCHED_FIFO 80 on CPU 1):")
