@@ -13,6 +13,10 @@
 
 #include <Eigen/Cholesky>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace trainer::model {
 namespace detail {
 
@@ -31,7 +35,10 @@ using ContactVector = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 
 
 // The nine sums run side by side over the modes (nine independent dependency chains instead of
 // one at a time: the sums are latency-bound), each in its own mode order, so every entry is
-// the same sequence of roundings as a sum computed alone.
+// the same sequence of roundings as a sum computed alone: s += (x·y)·k. With SSE2 the nine
+// chains sit in the lanes of five registers (two entries per packed multiply and add, the same
+// IEEE operations per lane), no longer spilled to the stack: ~235 → ~100 ns per block
+// (40 modes, warm; docs/performance.md "Modal contact solve", round 5).
 template <typename Scalar>
 void BasicModalModel<Scalar>::modal_compliance_block(std::uint32_t node_a, std::uint32_t node_b,
                                                      double (&block)[3][3]) const noexcept {
@@ -41,6 +48,41 @@ void BasicModalModel<Scalar>::modal_compliance_block(std::uint32_t node_a, std::
   const Scalar* b0 = shape_row(node_b, 0);
   const Scalar* b1 = shape_row(node_b, 1);
   const Scalar* b2 = shape_row(node_b, 2);
+#if defined(__SSE2__)
+  __m128d s0 = _mm_setzero_pd();  // s00 s01
+  __m128d s1 = _mm_setzero_pd();  // s10 s11
+  __m128d s2 = _mm_setzero_pd();  // s20 s21
+  __m128d s3 = _mm_setzero_pd();  // s02 s12
+  __m128d s4 = _mm_setzero_pd();  // s22 (low lane)
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    const __m128d k = _mm_set1_pd(inverse_k_hat_[i]);
+    const __m128d x0 = _mm_set1_pd(static_cast<double>(a0[i]));
+    const __m128d x1 = _mm_set1_pd(static_cast<double>(a1[i]));
+    const __m128d x2 = _mm_set1_pd(static_cast<double>(a2[i]));
+    const __m128d y01 = _mm_set_pd(static_cast<double>(b1[i]), static_cast<double>(b0[i]));
+    const __m128d y2 = _mm_set1_pd(static_cast<double>(b2[i]));
+    const __m128d x01 = _mm_unpacklo_pd(x0, x1);
+    s0 = _mm_add_pd(s0, _mm_mul_pd(_mm_mul_pd(x0, y01), k));
+    s1 = _mm_add_pd(s1, _mm_mul_pd(_mm_mul_pd(x1, y01), k));
+    s2 = _mm_add_pd(s2, _mm_mul_pd(_mm_mul_pd(x2, y01), k));
+    s3 = _mm_add_pd(s3, _mm_mul_pd(_mm_mul_pd(x01, y2), k));
+    s4 = _mm_add_sd(s4, _mm_mul_sd(_mm_mul_sd(x2, y2), k));
+  }
+  double pair[2];
+  _mm_storeu_pd(pair, s0);
+  block[0][0] = pair[0];
+  block[0][1] = pair[1];
+  _mm_storeu_pd(pair, s1);
+  block[1][0] = pair[0];
+  block[1][1] = pair[1];
+  _mm_storeu_pd(pair, s2);
+  block[2][0] = pair[0];
+  block[2][1] = pair[1];
+  _mm_storeu_pd(pair, s3);
+  block[0][2] = pair[0];
+  block[1][2] = pair[1];
+  block[2][2] = _mm_cvtsd_f64(s4);
+#else
   double s00 = 0.0, s01 = 0.0, s02 = 0.0, s10 = 0.0, s11 = 0.0, s12 = 0.0, s20 = 0.0, s21 = 0.0,
          s22 = 0.0;
   for (std::size_t i = 0; i < active_modes_; ++i) {
@@ -70,6 +112,7 @@ void BasicModalModel<Scalar>::modal_compliance_block(std::uint32_t node_a, std::
   block[2][0] = s20;
   block[2][1] = s21;
   block[2][2] = s22;
+#endif
 }
 
 // The blocks of two cached nodes (a ≠ b: both orientations; a = b: the diagonal block, its
@@ -151,12 +194,50 @@ void BasicModalModel<Scalar>::gather_contact_slots(
     slot_of[k] = slot;
   }
   // Only the blocks this solve needs (pairs of its targets) are computed.
+  std::uint8_t new_pairs[kMaxContacts * (kMaxContacts + 1) / 2][2];
+  std::size_t new_count = 0;
   for (std::size_t k = 0; k < targets.size(); ++k) {
     for (std::size_t l = k; l < targets.size(); ++l) {
-      if (!cache.pair_valid[slot_of[k] * kMaxContacts + slot_of[l]])
-        fill_cache_blocks(slot_of[k], slot_of[l]);
+      if (!cache.pair_valid[slot_of[k] * kMaxContacts + slot_of[l]]) {
+        new_pairs[new_count][0] = static_cast<std::uint8_t>(k);
+        new_pairs[new_count][1] = static_cast<std::uint8_t>(l);
+        ++new_count;
+      }
     }
   }
+  if (new_count == 0) return;
+  // The memory the new blocks read is requested first, all of it, so that the misses overlap
+  // instead of each one stalling its own block: the shape rows of the nodes in new pairs
+  // (3 × stored modes values) and, with static correction, the three rows of R a block reads
+  // (each in its own 4 KB page of the 4 MB residual compliance: a cache and TLB miss when
+  // cold). Prefetches change no value.
+  const std::size_t stride = 3 * static_cast<std::size_t>(surface_count_);
+  const std::size_t shape_bytes = 3 * static_cast<std::size_t>(stored_modes_) * sizeof(Scalar);
+  bool fetched[kMaxContacts] = {};
+  for (std::size_t p = 0; p < new_count; ++p) {
+    for (const std::uint8_t k : new_pairs[p]) {
+      if (fetched[k]) continue;
+      fetched[k] = true;
+      const auto* rows = reinterpret_cast<const char*>(shape_row(targets[k].node, 0));
+      for (std::size_t offset = 0; offset < shape_bytes; offset += 64)
+        __builtin_prefetch(rows + offset);
+      __builtin_prefetch(rows + shape_bytes - 1);
+    }
+    if (!static_correction_) continue;
+    const std::uint32_t node_k = targets[new_pairs[p][0]].node;
+    const std::uint32_t node_l = targets[new_pairs[p][1]].node;
+    for (int orientation = 0; orientation < (residual_symmetric_ ? 1 : 2); ++orientation) {
+      const Scalar* block = orientation == 0
+                                ? compliance_block(surface_index_[node_k], surface_index_[node_l])
+                                : compliance_block(surface_index_[node_l], surface_index_[node_k]);
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        __builtin_prefetch(block + axis * stride);
+        __builtin_prefetch(block + axis * stride + 2);
+      }
+    }
+  }
+  for (std::size_t p = 0; p < new_count; ++p)
+    fill_cache_blocks(slot_of[new_pairs[p][0]], slot_of[new_pairs[p][1]]);
 }
 
 // Free responses (Φ_node x⁺₀, from predicted_) of the nodes in three cache slots (a slot may
@@ -176,6 +257,45 @@ void BasicModalModel<Scalar>::free_responses(std::uint32_t slot_a, std::uint32_t
   const Scalar* c0 = shape_row(cache.nodes[slot_c], 0);
   const Scalar* c1 = shape_row(cache.nodes[slot_c], 1);
   const Scalar* c2 = shape_row(cache.nodes[slot_c], 2);
+  double* ra = cache.free_response + 3 * static_cast<std::size_t>(slot_a);
+  double* rb = cache.free_response + 3 * static_cast<std::size_t>(slot_b);
+  double* rc = cache.free_response + 3 * static_cast<std::size_t>(slot_c);
+#if defined(__SSE2__) && !defined(__AVX__)
+  // Two sums per packed multiply and add (the same IEEE operations per lane), no spills: 132 →
+  // 109 ns per three nodes in the generic build; with AVX (x86-64-v3) GCC's own loop below is
+  // not spilled and faster (88 vs 96 ns), so it stays there.
+  __m128d sa01 = _mm_setzero_pd();
+  __m128d sa2b0 = _mm_setzero_pd();
+  __m128d sb12 = _mm_setzero_pd();
+  __m128d sc01 = _mm_setzero_pd();
+  __m128d sc2 = _mm_setzero_pd();
+  for (std::size_t i = 0; i < active_modes_; ++i) {
+    const __m128d p = _mm_set1_pd(predicted_[i]);
+    sa01 = _mm_add_pd(
+        sa01, _mm_mul_pd(_mm_set_pd(static_cast<double>(a1[i]), static_cast<double>(a0[i])), p));
+    sa2b0 = _mm_add_pd(
+        sa2b0, _mm_mul_pd(_mm_set_pd(static_cast<double>(b0[i]), static_cast<double>(a2[i])), p));
+    sb12 = _mm_add_pd(
+        sb12, _mm_mul_pd(_mm_set_pd(static_cast<double>(b2[i]), static_cast<double>(b1[i])), p));
+    sc01 = _mm_add_pd(
+        sc01, _mm_mul_pd(_mm_set_pd(static_cast<double>(c1[i]), static_cast<double>(c0[i])), p));
+    sc2 = _mm_add_sd(sc2, _mm_mul_sd(_mm_set_sd(static_cast<double>(c2[i])), p));
+  }
+  double pair[2];
+  _mm_storeu_pd(pair, sa01);
+  ra[0] = pair[0];
+  ra[1] = pair[1];
+  _mm_storeu_pd(pair, sa2b0);
+  ra[2] = pair[0];
+  rb[0] = pair[1];
+  _mm_storeu_pd(pair, sb12);
+  rb[1] = pair[0];
+  rb[2] = pair[1];
+  _mm_storeu_pd(pair, sc01);
+  rc[0] = pair[0];
+  rc[1] = pair[1];
+  rc[2] = _mm_cvtsd_f64(sc2);
+#else
   double sa0 = 0.0, sa1 = 0.0, sa2 = 0.0, sb0 = 0.0, sb1 = 0.0, sb2 = 0.0, sc0 = 0.0, sc1 = 0.0,
          sc2 = 0.0;
   for (std::size_t i = 0; i < active_modes_; ++i) {
@@ -190,9 +310,6 @@ void BasicModalModel<Scalar>::free_responses(std::uint32_t slot_a, std::uint32_t
     sc1 += static_cast<double>(c1[i]) * p;
     sc2 += static_cast<double>(c2[i]) * p;
   }
-  double* ra = cache.free_response + 3 * static_cast<std::size_t>(slot_a);
-  double* rb = cache.free_response + 3 * static_cast<std::size_t>(slot_b);
-  double* rc = cache.free_response + 3 * static_cast<std::size_t>(slot_c);
   ra[0] = sa0;
   ra[1] = sa1;
   ra[2] = sa2;
@@ -202,6 +319,7 @@ void BasicModalModel<Scalar>::free_responses(std::uint32_t slot_a, std::uint32_t
   rc[0] = sc0;
   rc[1] = sc1;
   rc[2] = sc2;
+#endif
 }
 
 // The same target nodes in the same order as one of the kept factorisations: the same matrix
