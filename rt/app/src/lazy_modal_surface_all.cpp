@@ -10,6 +10,16 @@
 
 namespace trainer::app {
 
+void LazyModalSurface::keep_warm(ContactSurface& surface) noexcept {
+  const std::size_t lines = shapes_.size_bytes() / 64;
+  const auto* base = reinterpret_cast<const char*>(shapes_.data());
+  for (std::size_t k = 0; k < kWarmShapeLines && lines > 0; ++k) {
+    __builtin_prefetch(base + 64 * warm_line_, 0, 2);
+    warm_line_ = warm_line_ + 1 < lines ? warm_line_ + 1 : 0;
+  }
+  if (surface.grid) surface.grid->keep_warm(kWarmGridLines);
+}
+
 void LazyModalSurface::compute_all_fused() noexcept {
   // Every node in order, the surface nodes one run (node surface_first_node_ + k is surface
   // node k; the duct: nodes 16..335): Φ q by the model's kernel, then per coordinate the static
