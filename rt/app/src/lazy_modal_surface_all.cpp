@@ -169,7 +169,6 @@ void LazyModalSurface::restart_epochs() noexcept {
   epoch.load_count = load_count_;
   epoch.magnitude = magnitude_;
   epoch.delta_step = 0;
-  epoch.spread_step = 0;
   epoch.users = static_cast<std::uint32_t>(cluster_count());
   std::fill(cluster_epoch_.begin(), cluster_epoch_.begin() + static_cast<std::ptrdiff_t>(cluster_count()), 0U);
 }
@@ -180,31 +179,8 @@ void LazyModalSurface::rebase_all() noexcept {
   update_max_used();
 }
 
-void LazyModalSurface::spread_pass(std::uint32_t index) noexcept {
-  // Per cluster Σ_j spread_max_t_[j][c] |Δq_j| summed from zero over j in order in float, as a
-  // scalar loop per cluster would (the same multiply and add per lane), eight clusters at a time
-  // in two packets: the per-cluster loop was a 40-add dependent chain per refined cluster
-  // (~1.7 µs in a cbd 1 kHz step refining most of the 42 clusters).
-  Epoch& epoch = epochs_[index];
-  epoch.spread_step = step_;
-  using Lanes = Eigen::Array4f;
-  for (std::size_t base = 0; base < cluster_stride_; base += 8) {
-    Lanes low = Lanes::Zero();
-    Lanes high = Lanes::Zero();
-    for (std::size_t j = 0; j < active_modes_; ++j) {
-      const float d = epoch.abs_dq_f[j];
-      const float* row = spread_max_t_.data() + j * cluster_stride_ + base;
-      low = low + Eigen::Map<const Lanes>(row) * d;
-      high = high + Eigen::Map<const Lanes>(row + 4) * d;
-    }
-    Eigen::Map<Lanes>(spread_sum_.data() + base) = low;
-    Eigen::Map<Lanes>(spread_sum_.data() + base + 4) = high;
-  }
-}
-
-double LazyModalSurface::refined_bound(std::size_t cluster) noexcept {
-  const std::uint32_t index = cluster_epoch_[cluster];
-  const Epoch& epoch = epochs_[index];
+double LazyModalSurface::refined_bound(std::size_t cluster) const noexcept {
+  const Epoch& epoch = epochs_[cluster_epoch_[cluster]];
   if (!std::isfinite(epoch.dq_norm)) return std::numeric_limits<double>::quiet_NaN();
   // A row of the cluster: Φ_row Δq = Φ̄ Δq + (Φ_row − Φ̄) Δq. Φ̄ Δq in float with Δq rounded
   // to float: within 2^-24 Σ|Φ̄_j||Δq_j| of Φ̄ Δq for the rounding of Δq, and γ_{r+1} of the
@@ -221,8 +197,10 @@ double LazyModalSurface::refined_bound(std::size_t cluster) noexcept {
   const double dot_rounding = static_cast<double>(2 * active_modes_ + 6) * 0x1p-24 * mode_sum_[cluster];
   // The spread: Σ_j max|Φ_row,j − Φ̄_j| |Δq_j| in float (every factor rounded up, the sum's
   // rounding covered as in the pass), or the norms' product.
-  if (epoch.spread_step != step_) spread_pass(index);
-  const float spread_sum = spread_sum_[cluster];
+  float spread_sum = 0.0F;
+  for (std::size_t j = 0; j < active_modes_; ++j) {
+    spread_sum += spread_max_t_[j * cluster_stride_ + cluster] * epoch.abs_dq_f[j];
+  }
   const double float_sum = 1.0 + static_cast<double>(active_modes_ + 2) * 0x1p-23;
   const double spread = std::min(spread_norm_max_[cluster] * epoch.dq_norm * (1.0 + 1e-12),
                                  static_cast<double>(spread_sum) * float_sum);

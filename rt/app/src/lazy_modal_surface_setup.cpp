@@ -113,7 +113,6 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
                 lazy_surface_carve(arena, clusters * 3 * active, "lazy surface: mean rows", lazy.centre_rows_).is_ok() &&
                 lazy_surface_carve(arena, active * padded, "lazy surface: spread maxima", lazy.spread_max_t_).is_ok() &&
                 lazy_surface_carve(arena, clusters, "lazy surface: spread norms", lazy.spread_norm_max_).is_ok() &&
-                lazy_surface_carve(arena, padded, "lazy surface: spread sums", lazy.spread_sum_).is_ok() &&
                 lazy_surface_carve(arena, clusters, "lazy surface: mode sums", lazy.mode_sum_).is_ok() &&
                 lazy_surface_carve(arena, clusters, "lazy surface: load parts", lazy.load_part_).is_ok() &&
                 lazy_surface_carve(arena, lazy.static_correction_ ? s * padded : 1, "lazy surface: residual maxima",

@@ -156,7 +156,6 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
     std::span<float> delta_norm_f;  // idem in float (rounded up)
     std::size_t delta_count = 0;
     std::uint64_t delta_step = 0;  // the step the deltas are for
-    std::uint64_t spread_step = 0;  // the step spread_sum_ holds its clusters' spread sums for
   };
 
   LazyModalSurface() = default;
@@ -195,10 +194,7 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // A cluster beyond the budget after epoch_cluster_pass: the bound again with the modes' part
   // split at the cluster's mean rows Φ̄ (per axis): |Φ̄ Δq| computed (float, with its rounding
   // bound) + the rows' spread about it, min(max‖Φ_row − Φ̄‖ ‖Δq‖, Σ_j max|Φ_row,j − Φ̄_j| |Δq_j|).
-  // (Called only after this step's epoch_cluster_pass for the cluster's epoch: abs_dq_f current.)
-  double refined_bound(std::size_t cluster) noexcept;
-  // spread_sum_ for every cluster of `epoch`, eight clusters at a time (refined_bound, once per step).
-  void spread_pass(std::uint32_t epoch) noexcept;
+  double refined_bound(std::size_t cluster) const noexcept;
   double rounding_m(const Epoch& epoch) const noexcept;
   double state_magnitude(std::span<const float> modes, std::span<const Load> loads) const noexcept;
   // The next epoch of the ring, holding this step's snapshot; the clusters that referred to
@@ -235,7 +231,6 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   std::span<float> centre_rows_;            // cluster × 3 × active: the mean row Φ̄ per axis
   std::span<float> spread_max_t_;           // active × stride: max over rows |Φ_row,j − Φ̄_j| (rounded up)
   std::span<double> spread_norm_max_;       // cluster: max over rows ‖Φ_row − Φ̄‖₂ (rounded up)
-  std::span<float> spread_sum_;             // cluster (stride): Σ_j spread_max_t_ |Δq_j| (spread_pass)
   // Per cluster, this step's epoch_cluster_pass parts: Σ_j max|Φ_row,j| |Δq_j| and the loads'
   // part (float sums, with their covering factor).
   std::span<double> mode_sum_;
