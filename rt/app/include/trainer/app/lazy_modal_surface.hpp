@@ -117,8 +117,8 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // (TriangleBvh::keep_warm), round robin (prefetches into L2: no value changes). A full step
   // reads all of them at once, rarely (cbd at 1 kHz: 5 of 11,000 steps), and found them evicted
   // from L2 between full steps (Φq of the duct 4-7 µs instead of 3, the refit's boxes 3.5-6 instead
-  // of 2); the sweep keeps them there for ~10 ns per near cycle (16 and 8 lines: the same
-  // effect, ~20 ns).
+  // of 2); the sweep keeps them there for ~10-20 ns per near cycle (16 and 8 lines: the same
+  // effect at twice the cost). docs/collision.md "Full steps".
   void keep_warm(ContactSurface& surface) noexcept;
   static constexpr std::size_t kWarmShapeLines = 8;
   static constexpr std::size_t kWarmGridLines = 4;
