@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstddef>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -356,6 +358,23 @@ void TriangleBvh::refit_boxes() noexcept {
   const Aabb& root = nodes_[0].box;
   rounding_guard_m_ = 16.0F * std::numeric_limits<float>::epsilon() *
                       (std::max(root.min_m.cwiseAbs().maxCoeff(), root.max_m.cwiseAbs().maxCoeff()) + slack);
+}
+
+void TriangleBvh::keep_warm(std::size_t lines) noexcept {
+  const std::span<const std::byte> regions[] = {
+      std::as_bytes(reference_), std::as_bytes(triangles_), std::as_bytes(pack_ids_),
+      std::as_bytes(leaf_packs_), std::as_bytes(pack_box_),  std::as_bytes(wide_),
+      std::as_bytes(wide_box_)};
+  constexpr std::size_t kRegions = std::size(regions);
+  for (std::size_t k = 0; k < lines; ++k) {
+    if (warm_region_ >= kRegions) warm_region_ = 0;
+    const std::span<const std::byte> region = regions[warm_region_];
+    if (64 * warm_line_ < region.size()) __builtin_prefetch(region.data() + 64 * warm_line_, 0, 2);
+    if (64 * ++warm_line_ >= region.size()) {
+      warm_line_ = 0;
+      ++warm_region_;
+    }
+  }
 }
 
 core::Status TriangleBvh::refit(std::span<const float> positions_m, float slack_m) noexcept {

@@ -10,10 +10,20 @@
 
 namespace trainer::app {
 
+void LazyModalSurface::keep_warm(ContactSurface& surface) noexcept {
+  const std::size_t lines = shapes_.size_bytes() / 64;
+  const auto* base = reinterpret_cast<const char*>(shapes_.data());
+  for (std::size_t k = 0; k < kWarmShapeLines && lines > 0; ++k) {
+    __builtin_prefetch(base + 64 * warm_line_, 0, 2);
+    warm_line_ = warm_line_ + 1 < lines ? warm_line_ + 1 : 0;
+  }
+  if (surface.grid) surface.grid->keep_warm(kWarmGridLines);
+}
+
 void LazyModalSurface::compute_all_fused() noexcept {
   // Every node in order, the surface nodes one run (node surface_first_node_ + k is surface
   // node k; the duct: nodes 16..335): Φ q by the model's kernel, then per coordinate the static
-  // correction Σ_l R F summed from zero load by load, axis by axis (in registers, four
+  // correction Σ_l R F summed from zero load by load, axis by axis (in registers, 32
   // coordinates at a time), + that, + rest: the float operations of the per-node path
   // (finish_node) and of the whole-surface axpys, in the same order, in one pass over the array
   // instead of one per load and axis. Off the surface: + rest.
@@ -48,6 +58,22 @@ void LazyModalSurface::compute_all_fused() noexcept {
   const std::size_t last = first + 3 * static_cast<std::size_t>(surface_count_);
   add_rest(0, first);
   std::size_t i = first;
+  // Eight packets (32 coordinates) at a time: eight independent sums, so the adds' latency is
+  // hidden (each coordinate's own sum is the same, term by term from zero, as below).
+  for (; i + 32 <= last; i += 32) {
+    using Packet = Eigen::Array4f;
+    Packet sum[8];
+    for (Packet& packet : sum) packet = Packet::Zero();
+    for (std::size_t t = 0; t < terms; ++t) {
+      const float force = load_forces_[t];
+      const float* row = load_rows_[t] + (i - first);
+      for (std::size_t p = 0; p < 8; ++p) sum[p] = sum[p] + force * Eigen::Map<const Packet>(row + 4 * p);
+    }
+    for (std::size_t p = 0; p < 8; ++p) {
+      Eigen::Map<Packet> value(out + i + 4 * p);
+      value = (value + sum[p]) + Eigen::Map<const Packet>(rest + i + 4 * p);
+    }
+  }
   for (; i + 4 <= last; i += 4) {
     Eigen::Array4f sum = Eigen::Array4f::Zero();
     for (std::size_t t = 0; t < terms; ++t) {
@@ -72,7 +98,13 @@ void LazyModalSurface::compute_remaining() noexcept {
     stamp_[node] = step_;
     pending_[pending++] = node;
   }
-  if (pending == node_count_ && (surface_run_ || !static_correction_)) {
+  if (pending == 0) return;
+  if (surface_run_ || !static_correction_) {
+    // The fused pass over every vertex, the ones a check computed too: each gets the same bits
+    // again (same kernel, same operations in the same order as finish_node), and one fused pass
+    // costs less than the per-node path over the rest (which sums R's rows into full_residual_
+    // first, then adds it node by node; on the cbd duct's full steps 5-41 of 336 vertices had
+    // been computed by a check).
     compute_all_fused();
     return;
   }

@@ -61,6 +61,7 @@ core::Expected<LazyModalSurface> LazyModalSurface::create(const model::ModalMode
                                                           core::Arena& arena) {
   LazyModalSurface lazy;
   lazy.rest_ = data.rest_positions;
+  lazy.shapes_ = data.mode_shapes;
   lazy.node_count_ = data.node_count;
   lazy.stored_modes_ = data.mode_count;
   lazy.active_modes_ = modal.active_mode_count();

@@ -124,6 +124,7 @@ void ModalStage::refresh_surface(ModalModelState& state) noexcept {
   if (state.lazy) {
     // Lazy: only the vertices the queries return are computed (in the collision sub-stage);
     // the whole surface and the refit only when the motion bound exceeds the slack.
+    state.lazy->keep_warm(surface);
     const bool lazy = state.lazy->begin(surface, *state.model);
     stats_->laps.lap(Substage::modal_reconstruct);
     if (!lazy) (void)state.lazy->finish_full(surface);

@@ -99,6 +99,10 @@ class TriangleBvh final : public TriangleBroadPhase {
   // negative or non-finite slack; numeric_error: a non-finite position. On a refusal the
   // hierarchy is empty (queries return nothing) until a good refit.
   core::Status refit(std::span<const float> positions_m, float slack_m = 0.0F) noexcept;
+  // Asks for the next `lines` cache lines of the arrays a refit that does the work reads and
+  // writes (reference positions, triangles, pack ids, leaf packs, pack and node boxes, wide
+  // nodes), round robin: prefetches into L2, nothing changes (LazyModalSurface::keep_warm).
+  void keep_warm(std::size_t lines) noexcept;
 
   // Triangle ids whose stored box overlaps `box`, increasing, each once. capacity_exceeded
   // when out_ids is too short (the lowest out_ids.size() ids are written); invalid_argument
@@ -239,6 +243,8 @@ class TriangleBvh final : public TriangleBroadPhase {
   bool ready_ = false;
   std::uint64_t refit_count_ = 0;
   std::uint64_t refit_calls_ = 0;
+  std::size_t warm_region_ = 0;  // keep_warm's next line: region, line in it
+  std::size_t warm_line_ = 0;
   float last_deviation_m_ = 0.0F;
 };
 

@@ -112,6 +112,17 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   // The clusters' nodes: cluster c is cluster_nodes()[cluster_start(c) .. cluster_start(c+1)).
   std::span<const std::uint32_t> cluster_nodes() const noexcept { return cluster_nodes_; }
   std::uint32_t cluster_start(std::size_t cluster) const noexcept { return cluster_start_[cluster]; }
+  // Before begin(), when the surface is needed this cycle: asks for the next kWarmShapeLines
+  // cache lines of the mode-shape matrix and kWarmGridLines of the hierarchy's refit arrays
+  // (TriangleBvh::keep_warm), round robin (prefetches into L2: no value changes). A full step
+  // reads all of them at once, rarely (cbd at 1 kHz: 5 of 11,000 steps), and found them evicted
+  // from L2 between full steps (Φq of the duct 4-7 µs instead of 3, the refit's boxes 3.5-6 instead
+  // of 2); the sweep keeps them there for ~10-20 ns per near cycle (16 and 8 lines: the same
+  // effect at twice the cost). docs/collision.md "Full steps".
+  void keep_warm(ContactSurface& surface) noexcept;
+  static constexpr std::size_t kWarmShapeLines = 8;
+  static constexpr std::size_t kWarmGridLines = 4;
+
   // The last begin()'s bound for `cluster` (m: its reference's distance from the hierarchy's
   // reference + the motion bound + rounding), and the budget (0.999 s). NaN before a full step.
   double last_cluster_bound_m(std::size_t cluster) const noexcept { return bound_[cluster]; }
@@ -198,6 +209,8 @@ class LazyModalSurface final : public model::TriangleBroadPhase {
   ContactSurface* surface_ = nullptr;  // bound by begin() for this step
   const model::ModalModel* modal_ = nullptr;  // idem
   std::span<const float> rest_;
+  std::span<const float> shapes_;   // the mode-shape matrix (keep_warm)
+  std::size_t warm_line_ = 0;       // keep_warm's next cache line of it
   std::span<const float> residual_;     // 3s × 3s, row-major (empty without static correction)
   std::span<const std::int32_t> surface_index_;  // per node, −1 off the surface
   std::uint32_t node_count_ = 0;
