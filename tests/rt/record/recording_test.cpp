@@ -219,7 +219,11 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   // Channel 2: the telemetry frames the stream would send, at its rate (60 Hz by default) on
   // the loop's clock in simulated time: at most session time × 60 plus the first and the run's
   // last frame, and at most one per supervisor wake (2 ms of wall time) when the simulation
-  // runs faster than that. Each carries the session's metrics so far.
+  // runs faster than that. Each carries the session's metrics so far. How many wakes the
+  // supervisor (an ordinary thread) gets while a simulated session runs for a few tens of
+  // milliseconds depends on the machine's load: with four copies of this test on two CPUs it
+  // sent 6-12 frames where 9-15 wakes were expected, so the lower bound is the first and the
+  // last frame only.
   std::uint64_t frames = 0;
   std::uint64_t undecoded = 0;
   std::uint64_t wrong_checksums = 0;
@@ -252,10 +256,7 @@ TEST_F(Recording, CbdSessionReplaysBitExactlyWithoutHeapOnTheRtThread) {
   EXPECT_EQ(with_frames->records, kCycles);
   EXPECT_EQ(with_frames->telemetry_frames, frames);
   const double session_s = static_cast<double>(kCycles) * 1e-3;  // cbd: 1 ms period
-  const double wakes = result->wall_time_s / 2e-3;
   EXPECT_LE(static_cast<double>(frames), session_s * 60.0 + 2.0) << result->wall_time_s << " s";
-  EXPECT_GE(static_cast<double>(frames), 0.25 * std::min(session_s * 60.0, wakes))
-      << result->wall_time_s << " s";
   EXPECT_GE(frames, 2U);
   EXPECT_EQ(without_metrics, 0U);
   // The last frame's metrics are the report's (every cycle fed before it was sent).
