@@ -10,7 +10,9 @@
 #
 # usage: tools/perf/cycle_budget.sh [--runs N] [--build DIR] [--out DIR] [--no-fifo]
 #                                   [--jitter SECONDS]
-#   --runs N        runs per period (default 3; more on a busy machine)
+#   --runs N        runs per period (default 5: with 3, a cycle that noise hit in every run
+#                   still reached the 1 kHz p99.9 rank in about one run of four on this VM;
+#                   docs/performance.md "After round 5"; more on a busy machine)
 #   --build DIR     the release build (default build/release)
 #   --out DIR       reports and tables (default out/cycle_budget)
 #   --no-fifo       do not run the trainer under SCHED_FIFO (chrt -f 50; root only): other
@@ -27,7 +29,7 @@
 # OUT/jitter-1khz/, OUT/jitter-10khz/ (jitter's output).
 set -euo pipefail
 
-runs=3
+runs=5
 build=build/release
 out=out/cycle_budget
 fifo=1
@@ -74,9 +76,19 @@ if [ "$fifo" = 1 ]; then
   fi
 fi
 
+# The revision the binaries were built from: the build tree's source checkout (a --build in
+# another worktree), else this checkout for the default build, else unknown.
+source_dir=$(sed -n 's/^CMAKE_HOME_DIRECTORY:INTERNAL=//p' "$build/CMakeCache.txt" 2>/dev/null || true)
+if [ -n "$source_dir" ]; then
+  revision=$(git -C "$source_dir" describe --always --dirty 2>/dev/null || echo unknown)
+elif [ "$build" = build/release ]; then
+  revision=$(git describe --always --dirty 2>/dev/null || echo unknown)
+else
+  revision="binaries of $build"
+fi
 if [ "$table_only" = 0 ]; then
   printf '{"utc": "%s", "revision": "%s", "load": "%s", "runs": %s, "fifo": %s}\n' \
-    "$(date -u '+%Y-%m-%d %H:%M UTC')" "$(git describe --always --dirty 2>/dev/null || echo unknown)" \
+    "$(date -u '+%Y-%m-%d %H:%M UTC')" "$revision" \
     "$(cut -d' ' -f1-3 /proc/loadavg)" "$runs" "$fifo" >"$out/run_info.json"
 fi
 for period in 1000 100; do
