@@ -20,6 +20,14 @@
 namespace trainer::model {
 namespace detail {
 
+#if defined(__SSE2__)
+// The two lanes of a packed pair of sums, low and high (the values as computed, no rounding).
+inline void store_lanes(__m128d pair, double& low, double& high) noexcept {
+  low = _mm_cvtsd_f64(pair);
+  high = _mm_cvtsd_f64(_mm_unpackhi_pd(pair, pair));
+}
+#endif
+
 inline constexpr int kMaxContactRows = 3 * static_cast<int>(BasicModalModel<float>::kMaxContacts);
 // A contact compliance whose smallest LDLᵀ pivot is below this fraction of the largest is
 // treated as singular: with float data (relative error ~1e-7), below ~1e-8 the solved forces
@@ -68,19 +76,10 @@ void BasicModalModel<Scalar>::modal_compliance_block(std::uint32_t node_a, std::
     s3 = _mm_add_pd(s3, _mm_mul_pd(_mm_mul_pd(x01, y2), k));
     s4 = _mm_add_sd(s4, _mm_mul_sd(_mm_mul_sd(x2, y2), k));
   }
-  double pair[2];
-  _mm_storeu_pd(pair, s0);
-  block[0][0] = pair[0];
-  block[0][1] = pair[1];
-  _mm_storeu_pd(pair, s1);
-  block[1][0] = pair[0];
-  block[1][1] = pair[1];
-  _mm_storeu_pd(pair, s2);
-  block[2][0] = pair[0];
-  block[2][1] = pair[1];
-  _mm_storeu_pd(pair, s3);
-  block[0][2] = pair[0];
-  block[1][2] = pair[1];
+  detail::store_lanes(s0, block[0][0], block[0][1]);
+  detail::store_lanes(s1, block[1][0], block[1][1]);
+  detail::store_lanes(s2, block[2][0], block[2][1]);
+  detail::store_lanes(s3, block[0][2], block[1][2]);
   block[2][2] = _mm_cvtsd_f64(s4);
 #else
   double s00 = 0.0, s01 = 0.0, s02 = 0.0, s10 = 0.0, s11 = 0.0, s12 = 0.0, s20 = 0.0, s21 = 0.0,
@@ -281,19 +280,10 @@ void BasicModalModel<Scalar>::free_responses(std::uint32_t slot_a, std::uint32_t
         sc01, _mm_mul_pd(_mm_set_pd(static_cast<double>(c1[i]), static_cast<double>(c0[i])), p));
     sc2 = _mm_add_sd(sc2, _mm_mul_sd(_mm_set_sd(static_cast<double>(c2[i])), p));
   }
-  double pair[2];
-  _mm_storeu_pd(pair, sa01);
-  ra[0] = pair[0];
-  ra[1] = pair[1];
-  _mm_storeu_pd(pair, sa2b0);
-  ra[2] = pair[0];
-  rb[0] = pair[1];
-  _mm_storeu_pd(pair, sb12);
-  rb[1] = pair[0];
-  rb[2] = pair[1];
-  _mm_storeu_pd(pair, sc01);
-  rc[0] = pair[0];
-  rc[1] = pair[1];
+  detail::store_lanes(sa01, ra[0], ra[1]);
+  detail::store_lanes(sa2b0, ra[2], rb[0]);
+  detail::store_lanes(sb12, rb[1], rb[2]);
+  detail::store_lanes(sc01, rc[0], rc[1]);
   rc[2] = _mm_cvtsd_f64(sc2);
 #else
   double sa0 = 0.0, sa1 = 0.0, sa2 = 0.0, sb0 = 0.0, sb1 = 0.0, sb2 = 0.0, sc0 = 0.0, sc1 = 0.0,
