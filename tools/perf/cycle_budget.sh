@@ -11,7 +11,7 @@
 # usage: tools/perf/cycle_budget.sh [--runs N] [--build DIR] [--out DIR] [--no-fifo]
 #                                   [--jitter SECONDS]
 #   --runs N        runs per period (default 5: with 3, a cycle that noise hit in every run
-#                   still reached the 1 kHz p99.9 rank in about one run of four on this VM;
+#                   still reached the 1 kHz p99.9 rank in about one session of four on this VM;
 #                   docs/performance.md "After round 5"; more on a busy machine)
 #   --build DIR     the release build (default build/release)
 #   --out DIR       reports and tables (default out/cycle_budget)
@@ -77,7 +77,7 @@ if [ "$fifo" = 1 ]; then
 fi
 
 # The revision the binaries were built from: the build tree's source checkout (a --build in
-# another worktree), else this checkout for the default build, else unknown.
+# another worktree), else this checkout for the default build, else "binaries of DIR".
 source_dir=$(sed -n 's/^CMAKE_HOME_DIRECTORY:INTERNAL=//p' "$build/CMakeCache.txt" 2>/dev/null || true)
 if [ -n "$source_dir" ]; then
   revision=$(git -C "$source_dir" describe --always --dirty 2>/dev/null || echo unknown)
